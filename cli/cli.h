@@ -1,0 +1,25 @@
+/* cli.h - the specklab command's subcommands and shared helpers. */
+#ifndef SL_CLI_H
+#define SL_CLI_H
+
+#include <glib.h>
+#include <json-glib/json-glib.h>
+
+/* Each subcommand gets argv with argv[0] = "specklab SUBCOMMAND" and
+ * returns the process exit status: 0 ok, 1 failure, 2 usage error. */
+int cmd_sim(int argc, char **argv);
+int cmd_mask(int argc, char **argv);
+
+/* Parse "N" or "WxH" into width/height; FALSE with a message on error. */
+gboolean cli_parse_size(const char *text, int *w, int *h, GError **error);
+/* Parse the options of a subcommand; on error print it with the usage
+ * hint and return FALSE. */
+gboolean cli_parse(GOptionContext *ctx, int *argc, char ***argv);
+/* Print a JSON object built with b to stdout, one line. */
+void cli_print_json(JsonBuilder *b);
+/* Wall-clock seconds (monotonic). */
+double cli_now_s(void);
+/* Peak resident set size of this process in MB. */
+double cli_peak_rss_mb(void);
+
+#endif

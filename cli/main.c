@@ -1,0 +1,48 @@
+/* main.c - `specklab COMMAND [OPTIONS]`: dispatch to the subcommands. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+typedef struct command {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *summary;
+} command;
+
+static const command commands[] = {
+    {"sim", cmd_sim, "simulate a speckle cube (scene, mask, turbulence, detector)"},
+    {"mask", cmd_mask, "generate or show an aperture mask"},
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: specklab COMMAND [OPTIONS]   (specklab COMMAND --help)\n\n"
+               "commands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (!strcmp(argv[1], "help") || !strcmp(argv[1], "--help") ||
+        !strcmp(argv[1], "-h")) {
+        usage(stdout);
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
+        if (strcmp(argv[1], commands[i].name) == 0) {
+            char name[64];
+            snprintf(name, sizeof name, "specklab %s", commands[i].name);
+            argv[1] = name;
+            return commands[i].run(argc - 1, argv + 1);
+        }
+    }
+    fprintf(stderr, "specklab: unknown command '%s'\n\n", argv[1]);
+    usage(stderr);
+    return 2;
+}

@@ -1,0 +1,552 @@
+/* cube.c - the streaming FITS reader; see cube.h.
+ * Metadata helpers and the writer live in cube_write.c. */
+#include "cube.h"
+
+#include <errno.h>
+#include <fitsio.h>
+#include <glob.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* ---- header parsing ---------------------------------------------------- */
+
+/* FITS string value 'it''s  ' -> it's (trailing blanks are not
+ * significant in FITS strings, leading ones are). */
+static void unquote(const char *val, char out[CUBE_STR_MAX])
+{
+    size_t n = 0;
+    for (const char *p = val + 1; *p && n < CUBE_STR_MAX - 1; p++) {
+        if (*p == '\'' && p[1] != '\'')
+            break;
+        if (*p == '\'')
+            p++;
+        out[n++] = *p;
+    }
+    while (n > 0 && out[n - 1] == ' ')
+        n--;
+    out[n] = '\0';
+}
+
+/* Numeric value text to double; FITS allows a Fortran 'D' exponent. */
+static int parse_num(const char *val, double *out)
+{
+    char buf[FLEN_VALUE];
+    char *end;
+    snprintf(buf, sizeof buf, "%s", val);
+    for (char *p = buf; *p; p++)
+        if (*p == 'D' || *p == 'd')
+            *p = 'E';
+    *out = strtod(buf, &end);
+    while (*end == ' ')
+        end++;
+    return end != buf && *end == '\0';
+}
+
+/* Standard field for key with value text val: 1 taken (or dropped as
+ * unusable), 0 not a standard keyword.  Lenient on purpose: a metadata
+ * quirk (OBJECT = 123, EXPTIME = '0.01') must not make frames unreadable. */
+static int take_standard(cube_meta *m, const char *key, const char *val,
+                         char dtype)
+{
+    char *s = !strcmp(key, "DATE-OBS") ? m->date_obs
+            : !strcmp(key, "INSTRUME") ? m->instrume
+            : !strcmp(key, "OBJECT")   ? m->object
+            : !strcmp(key, "BUNIT")    ? m->bunit : NULL;
+    double *d = !strcmp(key, "EXPTIME")    ? &m->exptime_s
+              : !strcmp(key, "PLTSCALE") ? &m->plate_scale_arcsec
+              : !strcmp(key, "WAVELEN")  ? &m->wavelength_m : NULL;
+    char txt[CUBE_STR_MAX];
+    if (dtype == 'C')
+        unquote(val, txt);
+    else
+        snprintf(txt, sizeof txt, "%.*s", (int)sizeof txt - 1, val);
+    if (s)
+        memcpy(s, txt, sizeof txt);
+    else if (d && !parse_num(txt, d))
+        m->ndropped++; /* stays NaN */
+    return s || d;
+}
+
+/* Logicals enter as numbers 0/1 (the public setters have no logical);
+ * flag them so that writing restores T/F. */
+static void mark_bool(cube_meta *m, const char *key)
+{
+    for (int i = 0; i < m->nextra; i++)
+        if (strcasecmp(m->extra[i].key, key) == 0)
+            m->extra[i].type = CUBE_KV_BOOL;
+}
+
+/* One header card into m: a standard field, an extra, or skipped. */
+static void take_card(cube_meta *m, const char *key, const char *val,
+                      const char *comment, int compressed)
+{
+    char dtype = 0;
+    int st = 0;
+    if (val[0] == '\0')
+        return; /* commentary card */
+    /* A tile-compressed image exposes its binary-table keywords. */
+    if (compressed && (key[0] == 'Z' || !strcmp(key, "TFIELDS") ||
+                       !strncmp(key, "TTYPE", 5) || !strncmp(key, "TFORM", 5)))
+        return;
+    fits_get_keytype(val, &dtype, &st);
+    if (take_standard(m, key, val, dtype))
+        return;
+    int rc;
+    char str[CUBE_STR_MAX];
+    double num = dtype == 'L' ? (val[0] == 'T') : 0.0;
+    if (dtype == 'C') {
+        unquote(val, str);
+        rc = cube_meta_set_str(m, key, str, comment);
+    } else if (!st && (dtype == 'L' || parse_num(val, &num))) {
+        rc = cube_meta_set_num(m, key, num, comment);
+    } else {
+        rc = SL_ERANGE; /* complex or unparsable value */
+    }
+    if (rc == SL_OK && dtype == 'L')
+        mark_bool(m, key);
+    if (rc == SL_ERANGE)
+        m->ndropped++;
+    /* SL_EINVAL: structural or unusable name (HIERARCH): not an extra */
+}
+
+/* Metadata of the current HDU of fp. */
+static int meta_from_hdu(fitsfile *fp, cube_meta *m, const char *path,
+                         sl_err *err)
+{
+    int nkeys = 0, st = 0, rc = SL_OK;
+    cube_meta_init(m);
+    int compressed = fits_is_compressed_image(fp, &st);
+    fits_get_hdrspace(fp, &nkeys, NULL, &st);
+    for (int i = 1; i <= nkeys && !st; i++) {
+        char key[FLEN_KEYWORD], val[FLEN_VALUE], com[FLEN_COMMENT];
+        if (fits_read_keyn(fp, i, key, val, com, &st) == 0)
+            take_card(m, key, val, com, compressed);
+    }
+    if (st) {
+        char msg[FLEN_STATUS];
+        fits_get_errstatus(st, msg);
+        rc = sl_seterr(err, SL_EFORMAT, "%s: cannot read the header (%s)",
+                       path, msg);
+    }
+    return rc;
+}
+
+/* ---- opening one file -------------------------------------------------- */
+
+/* Why fits_open_diskfile failed, in words naming the file. */
+static int open_error(const char *path, int st, sl_err *err)
+{
+    struct stat sb;
+    char head[6] = {0}, msg[FLEN_STATUS];
+    fits_get_errstatus(st, msg);
+    fits_clear_errmsg();
+    if (stat(path, &sb) != 0)
+        return sl_seterr(err, SL_EIO, "cannot open %s: %s", path,
+                         strerror(errno));
+    FILE *f = fopen(path, "rb");
+    size_t got = f ? fread(head, 1, sizeof head, f) : 0;
+    if (f)
+        fclose(f);
+    if (got == sizeof head && memcmp(head, "SIMPLE", 6) == 0)
+        return sl_seterr(err, SL_EFORMAT, "%s: truncated or corrupt FITS "
+                         "header (%lld bytes; cfitsio: %s)", path,
+                         (long long)sb.st_size, msg);
+    return sl_seterr(err, SL_EFORMAT, "%s is not a FITS file (%lld bytes; "
+                     "cfitsio: %s)", path, (long long)sb.st_size, msg);
+}
+
+/* Move fp to the image with data: the primary, or when it has NAXIS=0 the
+ * first image extension with NAXIS>0.  *hdu gets its 1-based number. */
+static int find_image(fitsfile *fp, const char *path, int *hdu, sl_err *err)
+{
+    int st = 0, naxis = 0, type = IMAGE_HDU;
+    fits_get_img_dim(fp, &naxis, &st);
+    while (!st && (type != IMAGE_HDU || naxis == 0)) {
+        if (fits_movrel_hdu(fp, 1, &type, &st) == 0 && type == IMAGE_HDU)
+            fits_get_img_dim(fp, &naxis, &st);
+    }
+    if (st) {
+        fits_clear_errmsg();
+        return sl_seterr(err, SL_EFORMAT, "%s: no image data (primary HDU "
+                         "has NAXIS=0 and no image extension has data)", path);
+    }
+    fits_get_hdu_num(fp, hdu);
+    return SL_OK;
+}
+
+/* Size of the image at the current HDU; axes must be 2 or 3. */
+static int probe_axes(fitsfile *fp, const char *path, int *w, int *h,
+                      int *nframes, sl_err *err)
+{
+    int st = 0, bitpix = 0, naxis = 0;
+    LONGLONG n[3] = {0, 0, 1};
+    if (fits_get_img_paramll(fp, 3, &bitpix, &naxis, n, &st))
+        return sl_seterr(err, SL_EFORMAT, "%s: bad image header", path);
+    if (naxis != 2 && naxis != 3)
+        return sl_seterr(err, SL_EFORMAT, "%s: NAXIS = %d; expected 2 (one "
+                         "frame) or 3 (a cube of frames)", path, naxis);
+    if (n[0] < 1 || n[1] < 1 || n[0] > INT_MAX || n[1] > INT_MAX ||
+        n[2] > INT_MAX)
+        return sl_seterr(err, SL_EFORMAT, "%s: unusable image size %lld x "
+                         "%lld x %lld", path, (long long)n[0],
+                         (long long)n[1], (long long)n[2]);
+    *w = (int)n[0];
+    *h = (int)n[1];
+    *nframes = naxis == 3 ? (int)n[2] : 1;
+    return SL_OK;
+}
+
+/* ---- frames ------------------------------------------------------------ */
+
+/* After a failed read: "truncated" when the file is shorter than its
+ * header promises (cfitsio notices only when it reaches the end). */
+static int read_error(fitsfile *fp, const char *path, int k, int nframes,
+                      int st, sl_err *err)
+{
+    char msg[FLEN_STATUS];
+    struct stat sb;
+    LONGLONG head = 0, data = 0, end = 0;
+    int bitpix = 0, s2 = 0;
+    fits_get_errstatus(st, msg);
+    fits_clear_errmsg();
+    fits_get_hduaddrll(fp, &head, &data, &end, &s2);
+    fits_get_img_type(fp, &bitpix, &s2);
+    LONGLONG need = data;
+    int w = 0, h = 0, n = 0;
+    if (!s2 && probe_axes(fp, path, &w, &h, &n, NULL) == SL_OK)
+        need += (LONGLONG)w * h * nframes * (bitpix < 0 ? -bitpix : bitpix) / 8;
+    if (!s2 && stat(path, &sb) == 0 && (LONGLONG)sb.st_size < need)
+        return sl_seterr(err, SL_EFORMAT, "%s is truncated: %lld bytes, the "
+                         "header needs %lld (frame %d unreadable)", path,
+                         (long long)sb.st_size, (long long)need, k);
+    return sl_seterr(err, SL_EIO, "%s: cannot read frame %d (cfitsio: %s)",
+                     path, k, msg);
+}
+
+static int check_finite(const float *img, int w, int h, const char *path,
+                        int k, sl_err *err)
+{
+    size_t n = (size_t)w * (size_t)h, bad = 0, first = 0;
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(img[i]) && bad++ == 0)
+            first = i;
+    if (bad == 0)
+        return SL_OK;
+    return sl_seterr(err, SL_EDATA, "%s: %zu non-finite pixels (NaN/Inf) in "
+                     "frame %d; first at (x, y, frame) = (%zu, %zu, %d)",
+                     path, bad, k, first % (size_t)w, first / (size_t)w, k);
+}
+
+/* Frame k (0-based, within the file) of the current HDU into out. */
+static int read_plane(fitsfile *fp, const char *path, int w, int h, int k,
+                      int nframes, float *out, sl_err *err)
+{
+    LONGLONG first[3] = {1, 1, (LONGLONG)k + 1};
+    float nulval = NAN;
+    int anynul = 0, st = 0, bitpix = 0;
+    /* BLANK pixels of integer images become NaN.  Float images are read
+     * without cfitsio's null check, which would turn Inf into NaN and
+     * denormals into 0: they come back bit for bit. */
+    fits_get_img_type(fp, &bitpix, &st);
+    fits_read_pixll(fp, TFLOAT, first, (LONGLONG)w * h,
+                    bitpix > 0 ? &nulval : NULL, out, &anynul, &st);
+    if (st)
+        return read_error(fp, path, k, nframes, st, err);
+    return SL_OK;
+}
+
+/* ---- the reader -------------------------------------------------------- */
+
+typedef struct cube_file {
+    char *path;
+    int hdu;      /* 1-based HDU holding the image */
+    int nframes;
+} cube_file;
+
+struct cube_reader {
+    cube_file *files;
+    int nfiles;
+    unsigned flags;
+    int width, height, nframes;
+    fitsfile *fp;      /* files[cur] when open, else NULL */
+    int cur;           /* file of the next frame */
+    int in_file;       /* next frame within files[cur] */
+    int frame;         /* next frame of the sequence */
+    cube_meta meta;
+    sl_err err;
+};
+
+static int add_file(cube_reader *r, const char *path, sl_err *err)
+{
+    cube_file *f = &r->files[r->nfiles];
+    f->path = strdup(path);
+    if (!f->path)
+        return sl_seterr(err, SL_ENOMEM, "out of memory");
+    r->nfiles++;
+    return SL_OK;
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+    return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* A pattern (one path with * ? [ that names no existing file) becomes its
+ * matches, sorted; anything else is taken literally. */
+static int collect_paths(cube_reader *r, const char *const *paths,
+                         int npaths, sl_err *err)
+{
+    glob_t g = {0};
+    int rc = SL_OK, globbed = npaths == 1 && strpbrk(paths[0], "*?[") &&
+                              access(paths[0], F_OK) != 0;
+    if (globbed && glob(paths[0], GLOB_NOSORT, NULL, &g) != 0) {
+        rc = sl_seterr(err, SL_EIO, "no file matches %s", paths[0]);
+        goto free_glob;
+    }
+    size_t n = globbed ? g.gl_pathc : (size_t)npaths;
+    if (n > INT_MAX || !(r->files = calloc(n, sizeof *r->files))) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for %zu paths", n);
+        goto free_glob;
+    }
+    if (globbed)
+        qsort(g.gl_pathv, n, sizeof *g.gl_pathv, cmp_str);
+    for (size_t i = 0; i < n && rc == SL_OK; i++)
+        rc = add_file(r, globbed ? g.gl_pathv[i] : paths[i], err);
+free_glob:
+    if (globbed)
+        globfree(&g);
+    return rc;
+}
+
+/* Open file i at its image HDU; returns its size. */
+static int open_file(const cube_file *f, fitsfile **fp, int *w, int *h,
+                     int *n, int *hdu, sl_err *err)
+{
+    int st = 0, rc;
+    if (fits_open_diskfile(fp, f->path, READONLY, &st))
+        return open_error(f->path, st, err);
+    rc = find_image(*fp, f->path, hdu, err);
+    if (rc == SL_OK)
+        rc = probe_axes(*fp, f->path, w, h, n, err);
+    if (rc != SL_OK) {
+        st = 0;
+        fits_close_file(*fp, &st);
+        *fp = NULL;
+    }
+    return rc;
+}
+
+/* Read every file's header (one open at a time): sizes, frames, meta. */
+static int scan_files(cube_reader *r, sl_err *err)
+{
+    fitsfile *fp = NULL;
+    int rc = SL_OK;
+    long long total = 0;
+    for (int i = 0; i < r->nfiles && rc == SL_OK; i++) {
+        cube_file *f = &r->files[i];
+        int w, h, st = 0;
+        rc = open_file(f, &fp, &w, &h, &f->nframes, &f->hdu, err);
+        if (rc != SL_OK)
+            break;
+        if (i == 0) {
+            r->width = w;
+            r->height = h;
+            rc = meta_from_hdu(fp, &r->meta, f->path, err);
+        } else if (w != r->width || h != r->height) {
+            rc = sl_seterr(err, SL_EFORMAT, "%s: frames are %d x %d but %s "
+                           "has %d x %d", f->path, w, h, r->files[0].path,
+                           r->width, r->height);
+        }
+        total += f->nframes;
+        fits_close_file(fp, &st);
+    }
+    if (rc == SL_OK && (total == 0 || total > INT_MAX))
+        rc = sl_seterr(err, SL_EDATA, "%s%s: %lld frames", r->files[0].path,
+                       r->nfiles > 1 ? " ..." : "", total);
+    r->nframes = (int)total;
+    return rc;
+}
+
+int cube_reader_open(cube_reader **out, const char *const *paths,
+                     int npaths, unsigned flags, sl_err *err)
+{
+    int rc;
+    *out = NULL;
+    if (!paths || npaths < 1)
+        return sl_seterr(err, SL_EINVAL, "cube_reader_open: no paths");
+    for (int i = 0; i < npaths; i++)
+        if (!paths[i])
+            return sl_seterr(err, SL_EINVAL, "cube_reader_open: path %d "
+                             "is NULL", i);
+    cube_reader *r = calloc(1, sizeof *r);
+    if (!r)
+        return sl_seterr(err, SL_ENOMEM, "out of memory");
+    r->flags = flags;
+    rc = collect_paths(r, paths, npaths, err);
+    if (rc == SL_OK)
+        rc = scan_files(r, err);
+    if (rc != SL_OK)
+        goto free_reader;
+    *out = r;
+    return SL_OK;
+free_reader:
+    cube_reader_free(r);
+    return rc;
+}
+
+int cube_reader_width(const cube_reader *r) { return r->width; }
+int cube_reader_height(const cube_reader *r) { return r->height; }
+int cube_reader_nframes(const cube_reader *r) { return r->nframes; }
+const cube_meta *cube_reader_meta(const cube_reader *r) { return &r->meta; }
+const char *cube_reader_errmsg(const cube_reader *r) { return r->err.msg; }
+
+static void close_current(cube_reader *r)
+{
+    int st = 0;
+    if (r->fp)
+        fits_close_file(r->fp, &st);
+    r->fp = NULL;
+}
+
+/* Make r->fp the file holding the next frame (reopened lazily so that only
+ * one file is ever open); the file must still match its scanned size. */
+static int ensure_open(cube_reader *r)
+{
+    while (r->in_file >= r->files[r->cur].nframes) {
+        close_current(r);
+        r->cur++;
+        r->in_file = 0;
+    }
+    if (r->fp)
+        return SL_OK;
+    const cube_file *f = &r->files[r->cur];
+    int w, h, n, hdu, rc = open_file(f, &r->fp, &w, &h, &n, &hdu, &r->err);
+    if (rc == SL_OK && (w != r->width || h != r->height || n != f->nframes ||
+                        hdu != f->hdu)) {
+        close_current(r);
+        rc = sl_seterr(&r->err, SL_EFORMAT, "%s changed while being read",
+                       f->path);
+    }
+    return rc;
+}
+
+int cube_reader_next(cube_reader *r, float *frame)
+{
+    if (r->frame >= r->nframes)
+        return sl_seterr(&r->err, SL_EEND, "end of sequence");
+    int rc = ensure_open(r);
+    if (rc != SL_OK)
+        return rc;
+    const cube_file *f = &r->files[r->cur];
+    rc = read_plane(r->fp, f->path, r->width, r->height, r->in_file,
+                    f->nframes, frame, &r->err);
+    if (rc == SL_OK && !(r->flags & CUBE_ALLOW_NONFINITE))
+        rc = check_finite(frame, r->width, r->height, f->path, r->in_file,
+                          &r->err);
+    if (rc == SL_OK || rc == SL_EDATA) { /* a bad frame is consumed */
+        r->in_file++;
+        r->frame++;
+    }
+    return rc;
+}
+
+void cube_reader_rewind(cube_reader *r)
+{
+    close_current(r);
+    r->cur = 0;
+    r->in_file = 0;
+    r->frame = 0;
+    sl_clearerr(&r->err);
+}
+
+void cube_reader_free(cube_reader *r)
+{
+    if (!r)
+        return;
+    close_current(r);
+    for (int i = 0; i < r->nfiles; i++)
+        free(r->files[i].path);
+    free(r->files);
+    free(r);
+}
+
+/* ---- convenience ------------------------------------------------------- */
+
+int cube_read(seq **out, cube_meta *meta_or_NULL, const char *const *paths,
+              int npaths, unsigned flags, sl_err *err)
+{
+    cube_reader *r = NULL;
+    seq *s = NULL;
+    *out = NULL;
+    int rc = cube_reader_open(&r, paths, npaths, flags, err);
+    if (rc != SL_OK)
+        return rc;
+    s = seq_new(r->width, r->height, r->nframes);
+    if (!s) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for %d frames of "
+                       "%d x %d", r->nframes, r->width, r->height);
+        goto free_reader;
+    }
+    for (int k = 0; k < s->nframes && rc == SL_OK; k++)
+        rc = cube_reader_next(r, seq_frame(s, k));
+    if (rc != SL_OK) {
+        sl_seterr(err, rc, "%s", r->err.msg);
+        goto free_seq;
+    }
+    if (meta_or_NULL)
+        *meta_or_NULL = r->meta;
+    *out = s;
+    s = NULL;
+free_seq:
+    seq_free(s);
+free_reader:
+    cube_reader_free(r);
+    return rc;
+}
+
+int cube_read_ext(seq **out, const char *path, const char *extname,
+                  sl_err *err)
+{
+    fitsfile *fp = NULL;
+    seq *s = NULL;
+    int st = 0, w, h, n, rc;
+    *out = NULL;
+    if (!path || !extname)
+        return sl_seterr(err, SL_EINVAL, "cube_read_ext: NULL argument");
+    if (fits_open_diskfile(&fp, path, READONLY, &st))
+        return open_error(path, st, err);
+    if (fits_movnam_hdu(fp, IMAGE_HDU, (char *)extname, 0, &st)) {
+        fits_clear_errmsg();
+        rc = sl_seterr(err, SL_EFORMAT, "%s: no image extension named %s",
+                       path, extname);
+        goto close_file;
+    }
+    rc = probe_axes(fp, path, &w, &h, &n, err);
+    if (rc == SL_OK && n != 1)
+        rc = sl_seterr(err, SL_EFORMAT, "%s[%s]: %d planes, expected a 2-D "
+                       "image", path, extname, n);
+    if (rc != SL_OK)
+        goto close_file;
+    if (!(s = seq_new(w, h, 1))) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for %d x %d", w, h);
+        goto close_file;
+    }
+    rc = read_plane(fp, path, w, h, 0, 1, s->data, err);
+    if (rc == SL_OK)
+        rc = check_finite(s->data, w, h, path, 0, err);
+    if (rc == SL_OK) {
+        *out = s;
+        s = NULL;
+    }
+    seq_free(s);
+close_file:
+    st = 0;
+    fits_close_file(fp, &st);
+    return rc;
+}

@@ -1,0 +1,684 @@
+/* mask.c - see mask.h. */
+#include "mask.h"
+
+#include "rng.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct mask {
+    int nholes;            /* 0 for a filled aperture */
+    double hole_d_m;       /* 0 for a filled aperture */
+    double diameter_m;     /* filled aperture; 0 for holes */
+    double extent_m, max_baseline_m, min_spacing_m;
+    long redundancy;       /* -1 for a filled aperture */
+    char name[16];
+    double *x_m, *y_m;     /* point into xy */
+    double xy[];           /* 2 * nholes */
+};
+
+/* ---- redundancy ------------------------------------------------------- */
+
+/* Redundancy test of baselines a and b, with their negatives: the squared
+ * distance of the closer of a-b and a+b (the caller compares with d^2). */
+static inline double pair_q(double ax, double ay, double bx, double by)
+{
+    double mx = ax - bx, my = ay - by, px = ax + bx, py = ay + by;
+    double qm = mx * mx + my * my, qp = px * px + py * py;
+    return qm < qp ? qm : qp;
+}
+
+/* Baselines b = c_j - c_i (i < j) in pair order, into bx/by[n(n-1)/2]. */
+static void baselines(const double *x, const double *y, int n, double *bx,
+                      double *by)
+{
+    int k = 0;
+    for (int i = 0; i < n; i++)
+        for (int j = i + 1; j < n; j++, k++) {
+            bx[k] = x[j] - x[i];
+            by[k] = y[j] - y[i];
+        }
+}
+
+/* Redundant pairs among nb baselines: O(nb^2), 9180 tests for 17 holes. */
+static long count_pairs(const double *bx, const double *by, int nb,
+                        double d2)
+{
+    long c = 0;
+    for (int k = 0; k < nb; k++)
+        for (int l = k + 1; l < nb; l++)
+            c += pair_q(bx[k], by[k], bx[l], by[l]) < d2;
+    return c;
+}
+
+/* ---- construction ----------------------------------------------------- */
+
+static mask *mask_alloc(int nholes)
+{
+    mask *m = calloc(1, sizeof *m + 2 * (size_t)nholes * sizeof(double));
+    if (!m)
+        return NULL;
+    m->nholes = nholes;
+    m->x_m = m->xy;
+    m->y_m = m->xy + nholes;
+    strcpy(m->name, "custom");
+    return m;
+}
+
+/* Non-finite centres and overlapping holes.  With lines (file input) the
+ * message names the file and both lines, otherwise the hole indices. */
+static int check_holes(const double *x, const double *y, int n, double d,
+                       const int *lines, const char *path, sl_err *err)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(x[i]) || !isfinite(y[i]))
+            return lines ? sl_seterr(err, SL_EDATA,
+                                     "%s:%d: hole centre is not finite",
+                                     path, lines[i])
+                         : sl_seterr(err, SL_EDATA,
+                                     "mask: hole %d centre is not finite",
+                                     i);
+    for (int i = 0; i < n; i++)
+        for (int j = i + 1; j < n; j++) {
+            double dx = x[j] - x[i], dy = y[j] - y[i];
+            if (dx * dx + dy * dy >= d * d)
+                continue;
+            double dist = sqrt(dx * dx + dy * dy);
+            if (lines)
+                return sl_seterr(err, SL_EDATA,
+                                 "%s:%d: hole (%g, %g) overlaps the hole at "
+                                 "line %d: centre distance %g m < hole "
+                                 "diameter %g m",
+                                 path, lines[j], x[j], y[j], lines[i], dist,
+                                 d);
+            return sl_seterr(err, SL_EDATA,
+                             "mask: holes %d and %d overlap: centre distance "
+                             "%g m < hole diameter %g m",
+                             i, j, dist, d);
+        }
+    return SL_OK;
+}
+
+/* Copy validated holes into a new mask and derive its figures. */
+static mask *make_holes(const double *x, const double *y, int n, double d,
+                        sl_err *err)
+{
+    size_t nb = (size_t)n * (size_t)(n - 1) / 2;
+    double *b = malloc(2 * nb * sizeof *b);
+    mask *m = mask_alloc(n);
+    if (!m || !b) {
+        sl_seterr(err, SL_ENOMEM, "mask: out of memory for %d holes", n);
+        goto fail_alloc;
+    }
+    m->hole_d_m = d;
+    memcpy(m->x_m, x, (size_t)n * sizeof *x);
+    memcpy(m->y_m, y, (size_t)n * sizeof *y);
+    baselines(x, y, n, b, b + nb);
+    double qmax = 0, qmin = INFINITY;
+    for (size_t k = 0; k < nb; k++) {
+        double q = b[k] * b[k] + b[nb + k] * b[nb + k];
+        qmax = q > qmax ? q : qmax;
+        qmin = q < qmin ? q : qmin;
+    }
+    m->max_baseline_m = sqrt(qmax);
+    m->min_spacing_m = sqrt(qmin);
+    m->extent_m = m->max_baseline_m + d;
+    m->redundancy = count_pairs(b, b + nb, (int)nb, d * d);
+    free(b);
+    return m;
+fail_alloc:
+    free(b);
+    free(m);
+    return NULL;
+}
+
+mask *mask_new_full(double diameter_m)
+{
+    if (!(isfinite(diameter_m) && diameter_m > 0))
+        return NULL;
+    mask *m = mask_alloc(0);
+    if (!m)
+        return NULL;
+    m->diameter_m = diameter_m;
+    m->extent_m = diameter_m;
+    m->max_baseline_m = diameter_m;
+    m->redundancy = -1;
+    return m;
+}
+
+mask *mask_new_holes(const double *x_m, const double *y_m, int nholes,
+                     double hole_diameter_m, sl_err *err)
+{
+    if (!x_m || !y_m || nholes < 2 || nholes > MASK_MAX_HOLES) {
+        sl_seterr(err, SL_EINVAL, "mask: %d holes (need 2..%d centres)",
+                  nholes, MASK_MAX_HOLES);
+        return NULL;
+    }
+    if (!(isfinite(hole_diameter_m) && hole_diameter_m > 0)) {
+        sl_seterr(err, SL_EDATA, "mask: hole diameter %g m is not > 0",
+                  hole_diameter_m);
+        return NULL;
+    }
+    if (check_holes(x_m, y_m, nholes, hole_diameter_m, NULL, NULL, err))
+        return NULL;
+    return make_holes(x_m, y_m, nholes, hole_diameter_m, err);
+}
+
+void mask_free(mask *m)
+{
+    free(m);
+}
+
+/* ---- file I/O ---------------------------------------------------------- */
+
+/* One number at *p followed by whitespace or the end; advances *p. */
+static int parse_num(const char **p, double *v)
+{
+    char *end;
+    *v = strtod(*p, &end);
+    if (end == *p || (*end && *end != ' ' && *end != '\t'))
+        return -1;
+    *p = end;
+    return 0;
+}
+
+static int only_space(const char *s)
+{
+    return s[strspn(s, " \t\r\n\v\f")] == '\0';
+}
+
+int mask_read(mask **out, const char *path, sl_err *err)
+{
+    static const char key[] = "hole_diameter_m";
+    const size_t klen = sizeof key - 1;
+    int rc = SL_OK, lineno = 0, n = 0;
+    double d = NAN, v[2] = {0, 0};
+    char *buf = NULL;
+    size_t bufsz = 0;
+    *out = NULL;
+    /* fixed capacity, 5 KB: no growth logic */
+    double *x = malloc(MASK_MAX_HOLES * sizeof *x);
+    double *y = malloc(MASK_MAX_HOLES * sizeof *y);
+    int *lines = malloc(MASK_MAX_HOLES * sizeof *lines);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        rc = sl_seterr(err, SL_EIO, "%s: cannot open: %s", path,
+                       strerror(errno));
+        goto done;
+    }
+    if (!x || !y || !lines) {
+        rc = sl_seterr(err, SL_ENOMEM, "%s: out of memory", path);
+        goto done;
+    }
+    while (getline(&buf, &bufsz, f) >= 0) {
+        lineno++;
+        buf[strcspn(buf, "#\r\n")] = '\0'; /* comment, line end */
+        if (only_space(buf))
+            continue;
+        const char *p = buf + strspn(buf, " \t");
+        /* the key, then a blank or the line's end ('\0' is in the set) */
+        if (strncmp(p, key, klen) == 0 && strchr(" \t", p[klen])) {
+            p += klen;
+            if (!isnan(d))
+                rc = sl_seterr(err, SL_EFORMAT, "%s:%d: second '%s' line",
+                               path, lineno, key);
+            else if (parse_num(&p, &d) || !only_space(p))
+                rc = sl_seterr(err, SL_EFORMAT,
+                               "%s:%d: expected '%s <metres>'", path, lineno,
+                               key);
+            else if (!(isfinite(d) && d > 0))
+                rc = sl_seterr(err, SL_EDATA,
+                               "%s:%d: hole diameter %g is not a finite "
+                               "number > 0",
+                               path, lineno, d);
+            if (rc)
+                goto done;
+            continue;
+        }
+        if (parse_num(&p, &v[0]) || parse_num(&p, &v[1]) || !only_space(p))
+            rc = sl_seterr(err, SL_EFORMAT,
+                           "%s:%d: expected 'x_m y_m' (two numbers) or "
+                           "'%s <metres>', got '%s'",
+                           path, lineno, key, buf);
+        else if (!isfinite(v[0]) || !isfinite(v[1]))
+            rc = sl_seterr(err, SL_EDATA,
+                           "%s:%d: hole centre is not a finite number", path,
+                           lineno);
+        else if (isnan(d))
+            rc = sl_seterr(err, SL_EFORMAT,
+                           "%s:%d: hole given before the required '%s' line",
+                           path, lineno, key);
+        else if (n == MASK_MAX_HOLES)
+            rc = sl_seterr(err, SL_ERANGE, "%s:%d: more than %d holes", path,
+                           lineno, MASK_MAX_HOLES);
+        if (rc)
+            goto done;
+        x[n] = v[0];
+        y[n] = v[1];
+        lines[n++] = lineno;
+    }
+    if (ferror(f))
+        rc = sl_seterr(err, SL_EIO, "%s:%d: read error", path, lineno);
+    else if (isnan(d))
+        rc = sl_seterr(err, SL_EFORMAT,
+                       "%s:%d: end of file without the required '%s' line",
+                       path, lineno, key);
+    else if (n < 2)
+        rc = sl_seterr(err, SL_EFORMAT,
+                       "%s:%d: end of file after %d hole%s; a mask needs at "
+                       "least 2",
+                       path, lineno, n, n == 1 ? "" : "s");
+    else
+        rc = check_holes(x, y, n, d, lines, path, err);
+    if (rc)
+        goto done;
+    *out = make_holes(x, y, n, d, err);
+    if (!*out)
+        rc = SL_ENOMEM;
+done:
+    if (f)
+        fclose(f);
+    free(buf);
+    free(x);
+    free(y);
+    free(lines);
+    return rc;
+}
+
+int mask_write(const mask *m, const char *path, sl_err *err)
+{
+    if (m->nholes == 0)
+        return sl_seterr(err, SL_EINVAL,
+                         "%s: a filled aperture has no mask-file form", path);
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return sl_seterr(err, SL_EIO, "%s: cannot create: %s", path,
+                         strerror(errno));
+    int bad = fprintf(f,
+                      "# specklab aperture mask '%s': %d holes, redundancy "
+                      "%ld\n# x_m y_m: centres in metres, +x east (right), "
+                      "+y north\nhole_diameter_m %.17g\n",
+                      m->name, m->nholes, m->redundancy, m->hole_d_m) < 0;
+    for (int i = 0; i < m->nholes && !bad; i++)
+        bad = fprintf(f, "%.17g %.17g\n", m->x_m[i], m->y_m[i]) < 0;
+    int saved = errno;
+    if (fclose(f) != 0 && !bad) {
+        bad = 1;
+        saved = errno;
+    }
+    if (bad)
+        return sl_seterr(err, SL_EIO, "%s: write failed: %s", path,
+                         strerror(saved));
+    return SL_OK;
+}
+
+/* ---- generation -------------------------------------------------------- */
+
+/* Annealing energy of one redundant pair: 1 (the count) plus weight x how
+ * deep the overlap is (1 - q/d^2, in (0, 1]), so that moves which separate
+ * patches without yet clearing them are rewarded and the search is not
+ * blind on the integer count's plateaus.  The weight and the schedule were
+ * tuned on seeds 17..32 (weights 0..5, T0 1.5..5, T1 0.03..0.5). */
+#define GEN_DEPTH_WEIGHT 3.0
+/* Schedule: temperature and Gaussian step size fall geometrically; a
+ * fraction of moves jumps anywhere in the disk to escape local minima. */
+#define GEN_T0 3.0
+#define GEN_T1 0.3
+#define GEN_JUMP_P 0.1
+#define GEN_PLACE_TRIES 1000   /* per hole, before starting the layout over */
+#define GEN_PLACE_LAYOUTS 200  /* layouts before declaring it impossible */
+
+#define GEN_MAXB (MASK_GEN_MAX_HOLES * (MASK_GEN_MAX_HOLES - 1) / 2)
+
+/* The search state, one ~40 KB allocation with room for the largest
+ * layout; small enough that the O(n * nb) move scans stay in L1/L2. */
+typedef struct gen {
+    int n, nb;                          /* holes, baselines */
+    double r, r2, s2, d2;               /* disk radius, squared limits */
+    double x[MASK_GEN_MAX_HOLES], y[MASK_GEN_MAX_HOLES]; /* current */
+    double bestx[MASK_GEN_MAX_HOLES], besty[MASK_GEN_MAX_HOLES];
+    double ox[MASK_GEN_MAX_HOLES], oy[MASK_GEN_MAX_HOLES]; /* old and */
+    double nx[MASK_GEN_MAX_HOLES], ny[MASK_GEN_MAX_HOLES]; /* moved ones */
+    double bx[GEN_MAXB], by[GEN_MAXB];  /* baselines, pair order */
+} gen;
+
+/* Add the count and annealing energy of one baseline pair's test value. */
+static inline void gen_pen(const gen *g, double q, long *count,
+                           double *energy)
+{
+    if (q < g->d2) {
+        ++*count;
+        *energy += 1.0 + GEN_DEPTH_WEIGHT * (1.0 - q / g->d2);
+    }
+}
+
+/* Index of baseline (i, j), i < j, in pair order. */
+static inline int gen_pair(int n, int i, int j)
+{
+    return i * (2 * n - i - 1) / 2 + (j - i - 1);
+}
+
+/* May hole h move to (x, y)?  Checked against the first nset holes. */
+static int gen_ok(const gen *g, int h, int nset, double x, double y)
+{
+    if (x * x + y * y > g->r2)
+        return 0;
+    for (int j = 0; j < nset; j++) {
+        double dx = x - g->x[j], dy = y - g->y[j];
+        if (j != h && dx * dx + dy * dy < g->s2)
+            return 0;
+    }
+    return 1;
+}
+
+static void gen_uniform(const gen *g, rng *r, double *x, double *y)
+{
+    do { /* rejection from the square: no trig, exactly uniform */
+        *x = (2 * rng_uniform(r) - 1) * g->r;
+        *y = (2 * rng_uniform(r) - 1) * g->r;
+    } while (*x * *x + *y * *y > g->r2);
+}
+
+/* Random sequential placement; -1 if GEN_PLACE_LAYOUTS attempts fail. */
+static int gen_place(gen *g, rng *r)
+{
+    for (int layout = 0; layout < GEN_PLACE_LAYOUTS; layout++) {
+        int h = 0;
+        for (int tries = 0; h < g->n && tries < GEN_PLACE_TRIES; tries++) {
+            double x, y;
+            gen_uniform(g, r, &x, &y);
+            if (gen_ok(g, h, h, x, y)) {
+                g->x[h] = x;
+                g->y[h] = y;
+                h++;
+                tries = -1;
+            }
+        }
+        if (h == g->n)
+            return 0;
+    }
+    return -1;
+}
+
+/* Keep the layout if it beats the best so far: by count, then energy. */
+static void gen_keep(gen *g, long cur, double ecur, long *bc, double *be)
+{
+    if (cur < *bc || (cur == *bc && ecur < *be - 1e-9)) {
+        memcpy(g->bestx, g->x, sizeof g->x);
+        memcpy(g->besty, g->y, sizeof g->y);
+        *bc = cur;
+        *be = ecur;
+    }
+}
+
+/* Anneal from the current layout for iters moves, keeping the best layout
+ * seen in bestx/besty (count *bc, energy *be). */
+static void gen_anneal(gen *g, rng *r, int iters, long *bc, double *be)
+{
+    int n = g->n, nb = g->nb;
+    long cur = 0;
+    double ecur = 0;
+    baselines(g->x, g->y, n, g->bx, g->by);
+    for (int k = 0; k < nb; k++)
+        for (int l = k + 1; l < nb; l++)
+            gen_pen(g, pair_q(g->bx[k], g->by[k], g->bx[l], g->by[l]), &cur,
+                    &ecur);
+    gen_keep(g, cur, ecur, bc, be);
+    double sig0 = 0.2 * g->r, sig1 = 0.02 * sqrt(g->d2);
+    for (int it = 0; it < iters && cur > 0; it++) {
+        double f = (double)it / iters;
+        double temp = GEN_T0 * pow(GEN_T1 / GEN_T0, f);
+        double sig = sig0 * pow(sig1 / sig0, f);
+        int h = (int)(rng_uniform(r) * n);
+        double px, py;
+        if (rng_uniform(r) < GEN_JUMP_P)
+            gen_uniform(g, r, &px, &py);
+        else {
+            px = g->x[h] + sig * rng_normal(r);
+            py = g->y[h] + sig * rng_normal(r);
+        }
+        if (!gen_ok(g, h, n, px, py))
+            continue;
+        /* The move changes only the n-1 baselines touching h (o -> n):
+         * the energy change is theirs against the rest plus among
+         * themselves, O(n * nb) instead of O(nb^2) for a recount. */
+        long dco = 0, dcn = 0;
+        double deo = 0, den = 0;
+        for (int j = 0, c = 0; j < n; j++) {
+            if (j == h)
+                continue;
+            int k = j < h ? gen_pair(n, j, h) : gen_pair(n, h, j);
+            double sgn = j < h ? 1.0 : -1.0; /* b = c_later - c_earlier */
+            g->ox[c] = g->bx[k];
+            g->oy[c] = g->by[k];
+            g->nx[c] = sgn * (px - g->x[j]);
+            g->ny[c++] = sgn * (py - g->y[j]);
+        }
+        for (int i = 0, l = 0; i < n; i++)
+            for (int j = i + 1; j < n; j++, l++) {
+                if (i == h || j == h)
+                    continue;
+                for (int c = 0; c < n - 1; c++) {
+                    gen_pen(g, pair_q(g->ox[c], g->oy[c], g->bx[l], g->by[l]),
+                            &dco, &deo);
+                    gen_pen(g, pair_q(g->nx[c], g->ny[c], g->bx[l], g->by[l]),
+                            &dcn, &den);
+                }
+            }
+        for (int c = 0; c < n - 1; c++)
+            for (int c2 = c + 1; c2 < n - 1; c2++) {
+                gen_pen(g, pair_q(g->ox[c], g->oy[c], g->ox[c2], g->oy[c2]),
+                        &dco, &deo);
+                gen_pen(g, pair_q(g->nx[c], g->ny[c], g->nx[c2], g->ny[c2]),
+                        &dcn, &den);
+            }
+        double de = den - deo;
+        if (de > 0 && rng_uniform(r) >= exp(-de / temp))
+            continue;
+        g->x[h] = px;
+        g->y[h] = py;
+        for (int j = 0, c = 0; j < n; j++)
+            if (j != h) {
+                int k = j < h ? gen_pair(n, j, h) : gen_pair(n, h, j);
+                g->bx[k] = g->nx[c];
+                g->by[k] = g->ny[c++];
+            }
+        cur += dcn - dco;
+        ecur += de;
+        gen_keep(g, cur, ecur, bc, be);
+    }
+}
+
+void mask_gen_defaults(mask_gen_opts *o)
+{
+    o->nholes = 17;
+    o->hole_diameter_m = 0.10;
+    o->max_baseline_m = 1.0;
+    o->min_spacing_m = 0.20;
+    o->seed = 17;
+    o->iterations = 3500;
+}
+
+int mask_generate(mask **out, const mask_gen_opts *o, sl_err *err)
+{
+    *out = NULL;
+    if (o->nholes < 2 || o->nholes > MASK_GEN_MAX_HOLES || o->iterations < 0)
+        return sl_seterr(err, SL_EINVAL,
+                         "mask_generate: %d holes, %d iterations (need "
+                         "2..%d holes, iterations >= 0)",
+                         o->nholes, o->iterations, MASK_GEN_MAX_HOLES);
+    if (!(isfinite(o->hole_diameter_m) && o->hole_diameter_m > 0 &&
+          isfinite(o->max_baseline_m) &&
+          o->min_spacing_m >= o->hole_diameter_m &&
+          o->max_baseline_m >= o->min_spacing_m))
+        return sl_seterr(err, SL_EINVAL,
+                         "mask_generate: need 0 < hole diameter (%g m) <= "
+                         "min spacing (%g m) <= max baseline (%g m)",
+                         o->hole_diameter_m, o->min_spacing_m,
+                         o->max_baseline_m);
+    int n = o->nholes, rc = SL_OK;
+    gen *g = malloc(sizeof *g);
+    if (!g)
+        return sl_seterr(err, SL_ENOMEM, "mask_generate: out of memory");
+    g->n = n;
+    g->nb = n * (n - 1) / 2;
+    g->r = 0.5 * o->max_baseline_m;
+    g->r2 = g->r * g->r;
+    g->s2 = o->min_spacing_m * o->min_spacing_m;
+    g->d2 = o->hole_diameter_m * o->hole_diameter_m;
+    long best_c = LONG_MAX;
+    double best_e = INFINITY;
+    for (int rs = 0; rs < MASK_GEN_RESTARTS; rs++) {
+        rng rp, ra; /* separate streams: placement does not depend on the
+                     * iteration count, so iterations=0 shows the start */
+        rng_init(&rp, o->seed, 2 * (uint64_t)rs);
+        rng_init(&ra, o->seed, 2 * (uint64_t)rs + 1);
+        if (gen_place(g, &rp)) {
+            rc = sl_seterr(err, SL_ERANGE,
+                           "mask_generate: cannot place %d holes %g m apart "
+                           "with centres in a %g m disk",
+                           n, o->min_spacing_m, o->max_baseline_m);
+            goto done;
+        }
+        gen_anneal(g, &ra, o->iterations, &best_c, &best_e);
+    }
+    /* make_holes recounts from scratch: the reported redundancy does not
+     * rest on the annealer's incremental bookkeeping, which must agree. */
+    *out = make_holes(g->bestx, g->besty, n, o->hole_diameter_m, err);
+    if (!*out)
+        rc = SL_ENOMEM;
+    else if (mask_redundancy(*out) != best_c) {
+        rc = sl_seterr(err, SL_EDATA,
+                       "mask_generate: internal error: annealer counted %ld "
+                       "redundant pairs, recount finds %ld",
+                       best_c, mask_redundancy(*out));
+        mask_free(*out);
+        *out = NULL;
+    }
+done:
+    free(g);
+    return rc;
+}
+
+int mask_named(mask **out, const char *name, sl_err *err)
+{
+    *out = NULL;
+    if (name && strcmp(name, "nrm17") == 0) {
+        mask_gen_opts o;
+        mask_gen_defaults(&o);
+        int rc = mask_generate(out, &o, err);
+        if (rc)
+            return rc;
+    } else if (name && strcmp(name, "full") == 0) {
+        *out = mask_new_full(1.1);
+        if (!*out)
+            return sl_seterr(err, SL_ENOMEM, "mask: out of memory");
+    } else
+        return sl_seterr(err, SL_EINVAL,
+                         "mask: unknown pupil '%s' (known: nrm17, full)",
+                         name ? name : "(null)");
+    strcpy((*out)->name, name);
+    return SL_OK;
+}
+
+/* ---- accessors --------------------------------------------------------- */
+
+int mask_nholes(const mask *m) { return m->nholes; }
+double mask_hole_diameter_m(const mask *m) { return m->hole_d_m; }
+int mask_is_full(const mask *m) { return m->nholes == 0; }
+double mask_diameter_m(const mask *m) { return m->diameter_m; }
+double mask_extent_m(const mask *m) { return m->extent_m; }
+double mask_max_baseline_m(const mask *m) { return m->max_baseline_m; }
+double mask_min_spacing_m(const mask *m) { return m->min_spacing_m; }
+long mask_redundancy(const mask *m) { return m->redundancy; }
+const char *mask_name(const mask *m) { return m->name; }
+
+void mask_hole(const mask *m, int i, double *x_m, double *y_m)
+{
+    *x_m = m->x_m[i];
+    *y_m = m->y_m[i];
+}
+
+/* ---- rendering --------------------------------------------------------- */
+
+#define RENDER_SUB 8
+
+/* Add the coverage of a disk of radius r (pixels) centred hx, hy pixels
+ * from the grid centre.  Coordinates are taken relative to the centre as
+ * (integer offset - h), so a mirrored layout renders bit-exactly mirrored.
+ * Only edge pixels are supersampled: about 2*pi*r of them per disk. */
+static void render_disk(float *pupil, int n, double hx, double hy,
+                        double r)
+{
+    int c = n / 2;
+    double r2 = r * r;
+    double off[RENDER_SUB];
+    for (int s = 0; s < RENDER_SUB; s++)
+        off[s] = (s + 0.5) / RENDER_SUB - 0.5; /* exact, antisymmetric */
+    int x0 = (int)floor(hx - r) - 1 + c, x1 = (int)ceil(hx + r) + 1 + c;
+    int y0 = (int)floor(hy - r) - 1 + c, y1 = (int)ceil(hy + r) + 1 + c;
+    x0 = x0 < 0 ? 0 : x0;
+    y0 = y0 < 0 ? 0 : y0;
+    x1 = x1 > n - 1 ? n - 1 : x1;
+    y1 = y1 > n - 1 ? n - 1 : y1;
+    for (int iy = y0; iy <= y1; iy++) {
+        double v = (double)(iy - c) - hy, av = fabs(v);
+        double vn = av > 0.5 ? av - 0.5 : 0, vf = av + 0.5;
+        for (int ix = x0; ix <= x1; ix++) {
+            double u = (double)(ix - c) - hx, au = fabs(u);
+            double un = au > 0.5 ? au - 0.5 : 0, uf = au + 0.5;
+            if (un * un + vn * vn >= r2)
+                continue; /* nearest point outside */
+            float cov;
+            if (uf * uf + vf * vf <= r2)
+                cov = 1.0f; /* farthest corner inside */
+            else {
+                int hits = 0;
+                for (int sy = 0; sy < RENDER_SUB; sy++) {
+                    double w = v + off[sy];
+                    for (int sx = 0; sx < RENDER_SUB; sx++) {
+                        double z = u + off[sx];
+                        hits += z * z + w * w < r2;
+                    }
+                }
+                cov = (float)hits / (RENDER_SUB * RENDER_SUB);
+            }
+            float *px = &pupil[(size_t)iy * n + ix];
+            *px = *px + cov > 1.0f ? 1.0f : *px + cov; /* shared edges */
+        }
+    }
+}
+
+int mask_render(const mask *m, float *pupil, int n, double dx_m,
+                sl_err *err)
+{
+    if (!pupil || n < 1 || !(isfinite(dx_m) && dx_m > 0))
+        return sl_seterr(err, SL_EINVAL,
+                         "mask_render: bad grid (n = %d, dx = %g m)", n,
+                         dx_m);
+    /* pixel offsets from the centre run over [lo, hi], +-0.5 at the rims */
+    double lo = -(double)(n / 2) - 0.5, hi = (double)(n - 1 - n / 2) + 0.5;
+    int nd = m->nholes ? m->nholes : 1;
+    double r = 0.5 * (m->nholes ? m->hole_d_m : m->diameter_m) / dx_m;
+    for (int i = 0; i < nd; i++) {
+        double hx = m->nholes ? m->x_m[i] / dx_m : 0;
+        double hy = m->nholes ? m->y_m[i] / dx_m : 0;
+        if (hx - r < lo || hx + r > hi || hy - r < lo || hy + r > hi)
+            return sl_seterr(err, SL_ERANGE,
+                             "mask_render: the %g m pupil ('%s') does not "
+                             "fit a %dx%d grid of %g m pixels (%g m across): "
+                             "%s (%g, %g) m reaches past the edge",
+                             m->extent_m, m->name, n, n, dx_m, n * dx_m,
+                             m->nholes ? "hole at" : "aperture centred at",
+                             hx * dx_m, hy * dx_m);
+    }
+    memset(pupil, 0, (size_t)n * (size_t)n * sizeof *pupil);
+    for (int i = 0; i < nd; i++)
+        render_disk(pupil, n, m->nholes ? m->x_m[i] / dx_m : 0,
+                    m->nholes ? m->y_m[i] / dx_m : 0, r);
+    return SL_OK;
+}

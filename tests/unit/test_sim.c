@@ -329,8 +329,10 @@ TEST(bad_options_are_named)
     small_opts(&o); o.photons_per_frame = -5;
     CHECK(sim_new(&s, &o, m, sc, &e) == SL_EINVAL && strstr(e.msg, "photons"), "%s", e.msg);
     CHECK(s == NULL, "handle returned on error");
-    CHECK(scene_named(&sc, "nebula", 0, 0, 0, &e) == SL_EINVAL && strstr(e.msg, "nebula"), "%s", e.msg);
-    CHECK(scene_binary(&sc, 0.2, 0, -1, &e) == SL_EINVAL && strstr(e.msg, "dm"), "%s", e.msg);
+    scene *bad = NULL;
+    CHECK(scene_named(&bad, "nebula", 0, 0, 0, &e) == SL_EINVAL && strstr(e.msg, "nebula"), "%s", e.msg);
+    CHECK(scene_binary(&bad, 0.2, 0, -1, &e) == SL_EINVAL && strstr(e.msg, "dm"), "%s", e.msg);
+    CHECK(bad == NULL, "handle returned on error");
     scene_free(sc);
     mask_free(m);
 }

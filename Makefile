@@ -12,7 +12,9 @@ PKG    ?= pkg-config
 
 # Dependencies, each through pkg-config.  recon/ sees only RECON_PKGS.
 RECON_PKGS := fftw3f fftw3 cfitsio libpng
-CLI_PKGS   := glib-2.0 json-glib-1.0
+DRV_PKGS   := aravis-0.8 libusb-1.0 libmodbus glib-2.0
+CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
+TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 ifeq ($(CI),true)
@@ -31,21 +33,40 @@ recon_cflags = $(shell $(PKG) --cflags $(RECON_PKGS) 2>/dev/null)
 recon_libs   = $(shell $(PKG) --libs $(RECON_PKGS) 2>/dev/null) -lm
 cli_cflags   = $(shell $(PKG) --cflags $(CLI_PKGS) 2>/dev/null)
 cli_libs     = $(shell $(PKG) --libs $(CLI_PKGS) 2>/dev/null)
+drv_cflags   = $(shell $(PKG) --cflags $(DRV_PKGS) 2>/dev/null)
+drv_libs     = $(shell $(PKG) --libs $(DRV_PKGS) 2>/dev/null)
+tdrv_cflags  = $(shell $(PKG) --cflags $(TEST_DRV_PKGS) 2>/dev/null)
+tdrv_libs    = $(shell $(PKG) --libs $(TEST_DRV_PKGS) 2>/dev/null)
 
 RECON_SRC := $(wildcard recon/*.c)
 RECON_OBJ := $(RECON_SRC:%.c=$(BUILD)/%.o)
 RECON_LIB := $(BUILD)/librecon.a
 
+# drivers/: cameras (Aravis, libusb) and the stage (libmodbus).  Never
+# includes daemon/ and never links a mock.
+DRV_SRC   := $(wildcard drivers/*.c)
+DRV_OBJ   := $(DRV_SRC:%.c=$(BUILD)/%.o)
+DRV_LIB   := $(BUILD)/libdrivers.a
+
 CLI_SRC   := $(wildcard cli/*.c)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 
+# mocks/NAME/*.c -> bin/specklab-NAME: separate programs that speak the
+# real protocols on loopback (tests and the demo only).
+MOCK_DIRS := $(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c))))
+MOCK_BIN  := $(MOCK_DIRS:%=$(BIN)/specklab-%)
+
 TEST_SRC  := $(wildcard tests/unit/test_*.c)
 TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+# Driver and integration tests: link drivers + recon, may start mocks.
+TDRV_SRC  := $(wildcard tests/drivers/test_*.c)
+TDRV_BIN  := $(TDRV_SRC:tests/drivers/%.c=$(BUILD)/tests/%)
+ALL_TESTS := $(TEST_BIN) $(TDRV_BIN)
 
-PROGS := $(BIN)/specklab
+PROGS := $(BIN)/specklab $(MOCK_BIN)
 
 .PHONY: all deps test quick asan bench fuzz demo clean
-all: $(PROGS) $(TEST_BIN)
+all: $(PROGS) $(ALL_TESTS)
 
 $(BUILD)/recon/%.o: recon/%.c
 	@mkdir -p $(dir $@)
@@ -53,20 +74,42 @@ $(BUILD)/recon/%.o: recon/%.c
 
 $(BUILD)/cli/%.o: cli/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon $(recon_cflags) $(cli_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers $(recon_cflags) $(cli_cflags) -c $< -o $@
+
+$(BUILD)/drivers/%.o: drivers/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon $(drv_cflags) -c $< -o $@
+
+$(DRV_LIB): $(DRV_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/mocks/%.o: mocks/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers $(recon_cflags) $(drv_cflags) -c $< -o $@
+
+.SECONDEXPANSION:
+$(BIN)/specklab-%: $$(patsubst %.c,$(BUILD)/%.o,$$(wildcard mocks/$$*/*.c)) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(RECON_LIB) $(recon_libs) $(drv_libs)
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_OBJ) $(RECON_LIB)
+$(BIN)/specklab: $(CLI_OBJ) $(DRV_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_OBJ) $(RECON_LIB) $(recon_libs) $(cli_libs)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_OBJ) $(DRV_LIB) $(RECON_LIB) $(recon_libs) $(cli_libs)
 
 $(BUILD)/tests/%: tests/unit/%.c $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(RECON_LIB) $(recon_libs)
+
+$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(DRV_LIB) $(RECON_LIB) $(recon_libs) $(tdrv_libs)
 
 # Install what pkg-config lacks (root) or say the exact apt-get line.
 deps:
@@ -75,7 +118,7 @@ deps:
 # Everything CI runs.  The final line is "N passed, N failed".
 test: deps
 	@$(MAKE) --no-print-directory all
-	@tests/run $(TEST_BIN)
+	@tests/run $(ALL_TESTS)
 
 # The fast subset for the edit-compile loop: unit tests only.
 quick: all
@@ -89,7 +132,7 @@ asan: deps
 	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all" all
 	@ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
 	 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	 tests/run $(patsubst $(BUILD)/%,build-asan/%,$(TEST_BIN))
+	 tests/run $(patsubst $(BUILD)/%,build-asan/%,$(ALL_TESTS))
 
 # The main job.  Until the daemon exists: simulate a binary and reconstruct.
 demo: deps
@@ -99,4 +142,5 @@ demo: deps
 clean:
 	rm -rf build build-asan bin
 
--include $(RECON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d)
+-include $(RECON_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+         $(wildcard $(BUILD)/mocks/*/*.d)

@@ -15,6 +15,7 @@ RECON_PKGS := fftw3f fftw3 cfitsio libpng
 DRV_PKGS   := aravis-0.8 libusb-1.0 libmodbus glib-2.0
 CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
+SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 ifeq ($(CI),true)
@@ -37,6 +38,8 @@ drv_cflags   = $(shell $(PKG) --cflags $(DRV_PKGS) 2>/dev/null)
 drv_libs     = $(shell $(PKG) --libs $(DRV_PKGS) 2>/dev/null)
 tdrv_cflags  = $(shell $(PKG) --cflags $(TEST_DRV_PKGS) 2>/dev/null)
 tdrv_libs    = $(shell $(PKG) --libs $(TEST_DRV_PKGS) 2>/dev/null)
+schema_cflags = $(shell $(PKG) --cflags $(SCHEMA_PKGS) 2>/dev/null)
+schema_libs   = $(shell $(PKG) --libs $(SCHEMA_PKGS) 2>/dev/null)
 
 RECON_SRC := $(wildcard recon/*.c)
 RECON_OBJ := $(RECON_SRC:%.c=$(BUILD)/%.o)
@@ -47,6 +50,12 @@ RECON_LIB := $(BUILD)/librecon.a
 DRV_SRC   := $(wildcard drivers/*.c)
 DRV_OBJ   := $(DRV_SRC:%.c=$(BUILD)/%.o)
 DRV_LIB   := $(BUILD)/libdrivers.a
+
+# schema/: the SQLite catalogue; migrations are compiled in (GResource).
+SCHEMA_SRC := $(wildcard schema/*.c)
+SCHEMA_OBJ := $(SCHEMA_SRC:%.c=$(BUILD)/%.o) $(BUILD)/schema/catalog_res.o
+SCHEMA_LIB := $(BUILD)/libschema.a
+SCHEMA_RES := schema/catalog.gresource.xml
 
 CLI_SRC   := $(wildcard cli/*.c)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
@@ -61,7 +70,9 @@ TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 # Driver and integration tests: link drivers + recon, may start mocks.
 TDRV_SRC  := $(wildcard tests/drivers/test_*.c)
 TDRV_BIN  := $(TDRV_SRC:tests/drivers/%.c=$(BUILD)/tests/%)
-ALL_TESTS := $(TEST_BIN) $(TDRV_BIN)
+TCAT_SRC  := $(wildcard tests/catalog/test_*.c)
+TCAT_BIN  := $(TCAT_SRC:tests/catalog/%.c=$(BUILD)/tests/%)
+ALL_TESTS := $(TEST_BIN) $(TDRV_BIN) $(TCAT_BIN)
 
 PROGS := $(BIN)/specklab $(MOCK_BIN)
 
@@ -89,9 +100,29 @@ $(BUILD)/mocks/%.o: mocks/%.c
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers $(recon_cflags) $(drv_cflags) -c $< -o $@
 
 .SECONDEXPANSION:
-$(BIN)/specklab-%: $$(patsubst %.c,$(BUILD)/%.o,$$(wildcard mocks/$$*/*.c)) $(RECON_LIB)
+$(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(RECON_LIB) $(recon_libs) $(drv_libs)
+
+$(BUILD)/schema/catalog_res.c: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)
+	@mkdir -p $(dir $@)
+	glib-compile-resources --generate-source --c-name catalog_res \
+	    --sourcedir=schema --target=$@ $(SCHEMA_RES)
+
+$(BUILD)/schema/catalog_res.o: $(BUILD)/schema/catalog_res.c
+	$(CC) $(CFLAGS_ALL) -Wno-missing-prototypes $(schema_cflags) -c $< -o $@
+
+$(BUILD)/schema/%.o: schema/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema $(schema_cflags) -c $< -o $@
+
+$(SCHEMA_LIB): $(SCHEMA_OBJ)
+	rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(schema_libs) -lm
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
@@ -143,4 +174,4 @@ clean:
 	rm -rf build build-asan bin
 
 -include $(RECON_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
-         $(wildcard $(BUILD)/mocks/*/*.d)
+         $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d)

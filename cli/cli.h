@@ -9,6 +9,7 @@
  * returns the process exit status: 0 ok, 1 failure, 2 usage error. */
 int cmd_sim(int argc, char **argv);
 int cmd_mask(int argc, char **argv);
+int cmd_stage(int argc, char **argv);
 
 /* Parse "N" or "WxH" into width/height; FALSE with a message on error. */
 gboolean cli_parse_size(const char *text, int *w, int *h, GError **error);

@@ -13,6 +13,7 @@ typedef struct command {
 static const command commands[] = {
     {"sim", cmd_sim, "simulate a speckle cube (scene, mask, turbulence, detector)"},
     {"mask", cmd_mask, "generate or show an aperture mask"},
+    {"stage", cmd_stage, "home, move, stop or reset the stage wheels, or show their status"},
 };
 
 static void usage(FILE *f)

@@ -74,4 +74,46 @@
 #define STAGE_FAULT_OVERTEMP 3   /* driver over temperature */
 #define STAGE_FAULT_LIMIT 4      /* limit switch hit */
 
+/* Behaviour details (map version 1), as drivers/stage.c relies on them and
+ * mocks/fake-stage implements them:
+ *
+ * Commands.  Write COMMAND and CMD_WHEEL with one 0x10 request at 3..4
+ *   (mbpoll: `-0 -r 3 HOST 2 0` = MOVE wheel 0); the command runs once the
+ *   whole request has landed, and COMMAND reads back 0.  Write TARGET
+ *   (base+1) before MOVE.  HOME or MOVE on a wheel with STATUS_FAULT is
+ *   refused with exception 0x04 (server device failure) until RESET; a
+ *   refused command changes nothing.  STOP settles a running move on the
+ *   nearest slot and abandons homing (the wheel stays unhomed).  A stalled
+ *   wheel stops between slots (POSITION 0xFFFF) and keeps HOMED, so after
+ *   RESET a MOVE is accepted again.  Writes to read-only or unmapped
+ *   registers are refused with exception 0x02.  Function codes 0x03, 0x06
+ *   and 0x10 only.
+ * Status.  INPOS = at rest on a slot (POSITION valid); a move is complete
+ *   when !BUSY && INPOS && POSITION == TARGET.  BUSY is set by the command
+ *   itself, so a status read right after an accepted command never shows a
+ *   stale INPOS from before it.
+ * Addresses.  mbpoll -0 uses these addresses as they are (`mbpoll -m tcp
+ *   -a 1 -0 -r 0 -c 3 -1 -p PORT HOST` prints 21324, 1, 2); without -0,
+ *   mbpoll's reference N+1 is register N.
+ *
+ * Reserved registers 100..127: fault injection, fake stage only (a real
+ * stage may refuse them with exception 0x02).  Constants in
+ * mocks/fake-stage/fake_regs.h; the fake's flags set their initial values.
+ *   100 BUSY_COUNT        rw  answer the next N requests with exception 0x06
+ *   101 BUSY              rw  nonzero: answer every request with 0x06
+ *   102 STALL             rw  nonzero: HOME/MOVE started now never complete
+ *   103 STALL_MS          rw  then FAULT=STALL after this many ms (1000)
+ *   104 SLOW_MS           rw  delay every reply by this many ms
+ *   105 DISCONNECT_AFTER  rw  N > 0 counts down per request; the request
+ *                             reaching 0 is dropped with its connection
+ *   106 DISCONNECT        rw  nonzero: drop each connection at its first
+ *                             request
+ *   107 FAULT_SCREEN      w   write code: FAULT=code + STATUS_FAULT on wheel
+ *   108 FAULT_MASK        w   0 / 1, motion stops (ENCODER clears HOMED;
+ *                             0 clears); reads 0
+ * "Requests" above are those touching any register below 100: requests
+ * addressed only to 100..127 ignore the switches, so a test can always
+ * switch a fault off again over Modbus.
+ */
+
 #endif

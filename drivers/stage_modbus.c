@@ -1,0 +1,423 @@
+/* stage_modbus.c - the Modbus link of drivers/stage (see stage_modbus.h).
+ *
+ * Recovery policy, and why: libmodbus 3.1.6 has no notion of "this reply
+ * belongs to an earlier request", so after a response timeout a late reply
+ * answers the next request (EMBBADDATA, or worse, plausible data).  The only
+ * safe resynchronisation is a new connection (TCP) or a flushed line
+ * (RTU), so any timeout, garbled reply or socket error closes the link.
+ * A failed request is not re-sent within the same call (a command may or
+ * may not have been executed); the next call reconnects.  Connection
+ * attempts are spaced by an exponential backoff that persists across calls,
+ * so a caller polling a dead stage does not hammer it, and each call fails
+ * fast when its deadline falls before the next allowed attempt.
+ * MODBUS_ERROR_RECOVERY_LINK is never enabled: it reconnects inside
+ * libmodbus with its own unbounded loop.
+ */
+#include "stage_modbus.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <modbus.h>
+
+/* A transport: how to make its libmodbus context and what to do after a
+ * connection is up.  Everything else is protocol-generic. */
+typedef struct stage_backend {
+    const char *name;
+    modbus_t *(*create)(const stage_config *cfg, char *label, size_t n,
+                        sl_err *e);
+    void (*on_connect)(modbus_t *ctx);
+} stage_backend;
+
+struct stage_link {
+    const stage_backend *be;
+    modbus_t *ctx;
+    char label[160];
+    int response_ms, backoff_min_ms, backoff_max_ms;
+    int connected;
+    double next_try_s; /* no connection attempt before this */
+    int backoff_ms;    /* delay scheduled after the next failure */
+    char last[256];    /* why the link is down */
+    stage_ident ident;
+};
+
+double stage_now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+void stage_sleep_s(double d)
+{
+    if (d <= 0)
+        return;
+    struct timespec ts = {(time_t)d, (long)((d - (double)(time_t)d) * 1e9)};
+    while (nanosleep(&ts, &ts) < 0 && errno == EINTR)
+        ;
+}
+
+static modbus_t *tcp_create(const stage_config *cfg, char *label, size_t n,
+                            sl_err *e)
+{
+    struct in_addr a;
+    if (!cfg->host || inet_pton(AF_INET, cfg->host, &a) != 1) {
+        sl_seterr(e, SL_EINVAL, "stage: tcp host '%s' is not an IPv4 address",
+                  cfg->host ? cfg->host : "(null)");
+        return NULL;
+    }
+    if (cfg->port < 1 || cfg->port > 65535) {
+        sl_seterr(e, SL_EINVAL, "stage: tcp port %d outside 1..65535",
+                  cfg->port);
+        return NULL;
+    }
+    snprintf(label, n, "%s:%d", cfg->host, cfg->port);
+    return modbus_new_tcp(cfg->host, cfg->port);
+}
+
+static void tcp_on_connect(modbus_t *ctx)
+{
+    (void)ctx; /* a fresh socket has nothing stale in it */
+}
+
+static modbus_t *rtu_create(const stage_config *cfg, char *label, size_t n,
+                            sl_err *e)
+{
+    if (!cfg->device || !cfg->device[0]) {
+        sl_seterr(e, SL_EINVAL, "stage: rtu backend needs a serial device");
+        return NULL;
+    }
+    if (cfg->baud <= 0 || !cfg->parity || !strchr("NEO", cfg->parity) ||
+        cfg->data_bits < 5 || cfg->data_bits > 8 || cfg->stop_bits < 1 ||
+        cfg->stop_bits > 2) {
+        sl_seterr(e, SL_EINVAL, "stage %s: bad serial settings %d %d%c%d "
+                  "(baud > 0, 5..8 data bits, parity N/E/O, 1..2 stop bits)",
+                  cfg->device, cfg->baud, cfg->data_bits,
+                  cfg->parity ? cfg->parity : '?', cfg->stop_bits);
+        return NULL;
+    }
+    snprintf(label, n, "%s", cfg->device);
+    return modbus_new_rtu(cfg->device, cfg->baud, cfg->parity, cfg->data_bits,
+                          cfg->stop_bits);
+}
+
+static void rtu_on_connect(modbus_t *ctx)
+{
+    modbus_flush(ctx); /* drop bytes left on the line by an earlier exchange */
+}
+
+static const stage_backend backends[] = {
+    {"tcp", tcp_create, tcp_on_connect},
+    {"rtu", rtu_create, rtu_on_connect},
+};
+#define NBACKENDS ((int)(sizeof backends / sizeof backends[0]))
+
+const char *stage_backend_name(int i)
+{
+    return i >= 0 && i < NBACKENDS ? backends[i].name : NULL;
+}
+
+int stage_link_new(stage_link **out, const stage_config *cfg, sl_err *err)
+{
+    const char *name = cfg->backend ? cfg->backend : "tcp";
+    const stage_backend *be = NULL;
+    *out = NULL;
+    sl_clearerr(err);
+    for (int i = 0; i < NBACKENDS; i++)
+        if (!strcmp(backends[i].name, name))
+            be = &backends[i];
+    if (!be)
+        return sl_seterr(err, SL_EINVAL,
+                         "stage: unknown backend '%s' (known: tcp, rtu)", name);
+    if (cfg->unit_id < 0 || cfg->unit_id > 255 || cfg->response_timeout_ms < 1 ||
+        cfg->backoff_min_ms < 1 || cfg->backoff_max_ms < cfg->backoff_min_ms)
+        return sl_seterr(err, SL_EINVAL, "stage: bad unit id %d or timeouts "
+                         "(response %d ms, backoff %d..%d ms)", cfg->unit_id,
+                         cfg->response_timeout_ms, cfg->backoff_min_ms,
+                         cfg->backoff_max_ms);
+    stage_link *l = calloc(1, sizeof *l);
+    if (!l)
+        return sl_seterr(err, SL_ENOMEM, "stage: out of memory");
+    l->be = be;
+    l->response_ms = cfg->response_timeout_ms;
+    l->backoff_min_ms = l->backoff_ms = cfg->backoff_min_ms;
+    l->backoff_max_ms = cfg->backoff_max_ms;
+    snprintf(l->last, sizeof l->last, "never connected");
+    l->ctx = be->create(cfg, l->label, sizeof l->label, err);
+    if (!l->ctx) {
+        if (err && err->code == SL_OK) /* libmodbus refused the settings */
+            sl_seterr(err, SL_EINVAL, "stage: %s backend: %s", be->name,
+                      modbus_strerror(errno));
+        goto free_link;
+    }
+    if (modbus_set_slave(l->ctx, cfg->unit_id) < 0) {
+        sl_seterr(err, SL_EINVAL, "stage %s: unit id %d: %s", l->label,
+                  cfg->unit_id, modbus_strerror(errno));
+        goto free_ctx;
+    }
+    modbus_set_error_recovery(l->ctx, MODBUS_ERROR_RECOVERY_NONE);
+    *out = l;
+    return SL_OK;
+free_ctx:
+    modbus_free(l->ctx);
+free_link:
+    free(l);
+    return err ? err->code : SL_EINVAL;
+}
+
+void stage_link_free(stage_link *l)
+{
+    if (!l)
+        return;
+    if (l->connected)
+        modbus_close(l->ctx);
+    modbus_free(l->ctx);
+    free(l);
+}
+
+const char *stage_link_label(const stage_link *l)
+{
+    return l->label;
+}
+
+int stage_link_connected(const stage_link *l)
+{
+    return l->connected;
+}
+
+const stage_ident *stage_link_ident(const stage_link *l)
+{
+    return &l->ident;
+}
+
+/* Both libmodbus timeouts: the wait for the first byte of a reply and the
+ * gap between its bytes.  Capped by the caller to the time left. */
+static void set_timeouts(stage_link *l, int ms)
+{
+    ms = ms < 1 ? 1 : ms;
+    modbus_set_response_timeout(l->ctx, (uint32_t)(ms / 1000),
+                                (uint32_t)(ms % 1000) * 1000u);
+    modbus_set_byte_timeout(l->ctx, (uint32_t)(ms / 1000),
+                            (uint32_t)(ms % 1000) * 1000u);
+}
+
+static int ms_left(const stage_link *l, double deadline_s)
+{
+    double left = (deadline_s - stage_now_s()) * 1e3;
+    return left < l->response_ms ? (int)ceil(left) : l->response_ms;
+}
+
+enum { X_OK, X_LATE, X_BUSY, X_EXC, X_LINK };
+
+/* One request on an open link, re-sent while the stage answers "busy"
+ * (the stage did not act on it, so repeating is safe) and time remains.
+ * Returns an X_* class; *en = errno of the failure, *to_ms = the response
+ * timeout of the last attempt. */
+static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
+                    double deadline_s, int *en, int *to_ms)
+{
+    double busy_wait_s = 0.01;
+    int busy = 0;
+    for (;;) {
+        int ms = ms_left(l, deadline_s);
+        if (ms < 1)
+            return busy ? X_BUSY : X_LATE;
+        set_timeouts(l, ms);
+        *to_ms = ms;
+        int rc;
+        if (!write)
+            rc = modbus_read_registers(l->ctx, addr, n, buf);
+        else if (n == 1)
+            rc = modbus_write_register(l->ctx, addr, buf[0]);
+        else
+            rc = modbus_write_registers(l->ctx, addr, n, buf);
+        if (rc >= 0)
+            return X_OK;
+        *en = errno;
+        if (*en == EMBXSBUSY) {
+            busy = 1;
+            if (stage_now_s() + busy_wait_s >= deadline_s)
+                return X_BUSY;
+            stage_sleep_s(busy_wait_s);
+            busy_wait_s = fmin(2 * busy_wait_s, 0.1);
+            continue;
+        }
+        if (*en > MODBUS_ENOBASE && *en <= EMBXGTAR)
+            return X_EXC;
+        return X_LINK;
+    }
+}
+
+/* Close the link, remember why (printf-style), schedule the next attempt
+ * one backoff step later and double the step.  Returns code. */
+static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(l->last, sizeof l->last, fmt, ap);
+    va_end(ap);
+    modbus_close(l->ctx);
+    l->connected = 0;
+    l->next_try_s = stage_now_s() + l->backoff_ms * 1e-3;
+    l->backoff_ms = l->backoff_ms * 2 > l->backoff_max_ms ? l->backoff_max_ms
+                                                           : l->backoff_ms * 2;
+    return sl_seterr(e, code, "%s", l->last);
+}
+
+static const char *link_reason(int en, int to_ms, char *buf, size_t n)
+{
+    if (en == ETIMEDOUT)
+        snprintf(buf, n, "no reply within %d ms", to_ms);
+    else if (en == ECONNRESET)
+        snprintf(buf, n, "connection closed by the stage");
+    else if (en == EMBBADDATA || en == EMBBADCRC || en == EMBMDATA ||
+             en == EMBBADEXC || en == EMBUNKEXC || en == EMBBADSLAVE)
+        snprintf(buf, n, "bad reply (%s)", modbus_strerror(en));
+    else
+        snprintf(buf, n, "%s", modbus_strerror(en));
+    return buf;
+}
+
+/* Verify a fresh connection is a specklab stage and read its wheels. */
+static int handshake(stage_link *l, double deadline_s, sl_err *e)
+{
+    uint16_t id[3], wr[STAGE_REG_WHEEL_BASE(STAGE_NWHEELS - 1) +
+                       STAGE_WHEEL_NREGS - STAGE_REG_WHEEL_BASE(0)];
+    int en = 0, to_ms = 0, nw = (int)(sizeof wr / sizeof wr[0]);
+    char why[128];
+    int x = exchange(l, 0, STAGE_REG_MAGIC, 3, id, deadline_s, &en, &to_ms);
+    if (x == X_OK)
+        x = exchange(l, 0, STAGE_REG_WHEEL_BASE(0), nw, wr, deadline_s, &en,
+                     &to_ms);
+    switch (x) {
+    case X_OK: break;
+    case X_LATE: return go_down(l, e, SL_EIO, "connected, but the call's "
+                                "deadline came before the identity check");
+    case X_BUSY: return go_down(l, e, SL_EIO, "connected, but the stage "
+                                "answered busy (exception 0x06) until the "
+                                "deadline");
+    case X_EXC: return go_down(l, e, SL_EFORMAT, "identity registers refused "
+                               "(%s): not a specklab stage?",
+                               modbus_strerror(en));
+    default: return go_down(l, e, SL_EIO, "connected, then %s during the "
+                            "identity check",
+                            link_reason(en, to_ms, why, sizeof why));
+    }
+    if (id[0] != STAGE_MAGIC)
+        return go_down(l, e, SL_EFORMAT, "not a specklab stage: register 0 "
+                       "reads 0x%04X, expected 0x%04X (wrong device, port or "
+                       "unit id?)", id[0], STAGE_MAGIC);
+    if (id[1] < 1 || id[1] > STAGE_MAP_VERSION || id[2] != STAGE_NWHEELS)
+        return go_down(l, e, SL_EFORMAT, "unsupported stage: register map "
+                       "version %u with %u wheels (this driver knows version "
+                       "%d with %d)", id[1], id[2], STAGE_MAP_VERSION,
+                       STAGE_NWHEELS);
+    l->ident.magic = id[0];
+    l->ident.version = id[1];
+    l->ident.nwheels = id[2];
+    for (int w = 0; w < STAGE_NWHEELS; w++) {
+        const uint16_t *b = wr + STAGE_REG_WHEEL_BASE(w) - STAGE_REG_WHEEL_BASE(0);
+        l->ident.slots[w] = b[STAGE_WREG_SLOTS];
+        l->ident.move_ms[w] = b[STAGE_WREG_MOVE_MS];
+    }
+    return SL_OK;
+}
+
+static int connect_once(stage_link *l, double deadline_s, sl_err *e)
+{
+    int ms = ms_left(l, deadline_s);
+    if (ms < 1)
+        return SL_EIO; /* the caller reports l->last */
+    /* libmodbus bounds the TCP connect by the response timeout. */
+    set_timeouts(l, ms);
+    if (modbus_connect(l->ctx) < 0) {
+        int en = errno;
+        /* libmodbus leaves EINPROGRESS when its connect wait ran out */
+        if (en == EINPROGRESS || en == ETIMEDOUT)
+            return go_down(l, e, SL_EIO, "cannot connect: no answer within "
+                           "%d ms", ms);
+        return go_down(l, e, SL_EIO, "cannot connect: %s", modbus_strerror(en));
+    }
+    l->be->on_connect(l->ctx);
+    int rc = handshake(l, deadline_s, e);
+    if (rc != SL_OK)
+        return rc;
+    l->connected = 1;
+    l->backoff_ms = l->backoff_min_ms;
+    return SL_OK;
+}
+
+int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
+{
+    int attempts = 0;
+    while (!l->connected) {
+        double now = stage_now_s();
+        if (l->next_try_s >= deadline_s)
+            return sl_seterr(e, SL_EIO, "not connected: %s (%d attempt%s in "
+                             "this call; next in %.0f ms, past its deadline)",
+                             l->last, attempts, attempts == 1 ? "" : "s",
+                             (l->next_try_s - now) * 1e3);
+        stage_sleep_s(l->next_try_s - now);
+        attempts++;
+        int rc = connect_once(l, deadline_s, e);
+        if (rc == SL_EFORMAT)
+            return rc;
+        if (rc != SL_OK && stage_now_s() >= deadline_s)
+            return sl_seterr(e, SL_EIO, "not connected: %s (%d attempt%s in "
+                             "this call)", l->last, attempts,
+                             attempts == 1 ? "" : "s");
+    }
+    return SL_OK;
+}
+
+static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
+                   double deadline_s, int *exc, sl_err *e)
+{
+    int en = 0, to_ms = 0;
+    char why[128];
+    *exc = 0;
+    int rc = stage_link_ensure(l, deadline_s, e);
+    if (rc != SL_OK)
+        return rc;
+    double t0 = stage_now_s();
+    switch (exchange(l, write, addr, n, buf, deadline_s, &en, &to_ms)) {
+    case X_OK:
+        return SL_OK;
+    case X_LATE:
+        return sl_seterr(e, SL_EIO, "call deadline reached before the request");
+    case X_BUSY:
+        return sl_seterr(e, SL_EIO, "stage busy (exception 0x06) for %.1f s, "
+                         "until the call's deadline", stage_now_s() - t0);
+    case X_EXC:
+        *exc = en - MODBUS_ENOBASE;
+        return sl_seterr(e, SL_EIO, "exception 0x%02X (%s)", *exc,
+                         modbus_strerror(en));
+    default:
+        return go_down(l, e, SL_EIO, "%s (reconnecting)",
+                       link_reason(en, to_ms, why, sizeof why));
+    }
+}
+
+int stage_link_read(stage_link *l, int addr, int n, uint16_t *dst,
+                    double deadline_s, int *exc, sl_err *e)
+{
+    return request(l, 0, addr, n, dst, deadline_s, exc, e);
+}
+
+int stage_link_write(stage_link *l, int addr, int n, const uint16_t *src,
+                     double deadline_s, int *exc, sl_err *e)
+{
+    uint16_t buf[MODBUS_MAX_WRITE_REGISTERS];
+    if (n < 1 || n > MODBUS_MAX_WRITE_REGISTERS)
+        return sl_seterr(e, SL_EINVAL, "write of %d registers", n);
+    memcpy(buf, src, (size_t)n * sizeof *buf);
+    return request(l, 1, addr, n, buf, deadline_s, exc, e);
+}

@@ -1,0 +1,360 @@
+/* powspec.c - see powspec.h.
+ *
+ * The frame FFT is a single-precision r2c transform planned once; the
+ * accumulators hold only the non-redundant half plane (h x (w/2+1)) in
+ * double, and powspec_result/mean_ft expand to the full plane with
+ * Hermitian symmetry.  Per frame: one r2c FFT plus O(wh) sums, no
+ * allocation.
+ */
+#include <complex.h>
+#include <fftw3.h>
+
+#include "powspec.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct powspec {
+    int w, h, wc;         /* wc = w/2 + 1 columns of the half plane */
+    powspec_opts o;
+    float *win;           /* w*h window or NULL */
+    float *in;            /* w*h windowed frame (FFT input) */
+    fftwf_complex *out;   /* h*wc spectrum */
+    fftwf_plan plan;
+    double *ps;           /* h*wc sum of |F|^2 */
+    double complex *ft;   /* h*wc sum of F */
+    double flux, pbias;   /* sums of frame flux and photon bias */
+    int n;
+    sl_err err;
+};
+
+void powspec_opts_default(powspec_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->window = POWSPEC_WIN_NONE;
+    o->tukey_alpha = 0.25;
+    o->bias = POWSPEC_BIAS_NONE;
+    o->adu_per_photon = 1.0;
+    o->floor_rho = 1.0;
+    o->measure = 1;
+}
+
+/* One axis of the window: Tukey with taper fraction alpha (Hann = 1). */
+static double win1(int x, int n, double alpha)
+{
+    if (alpha <= 0)
+        return 1.0;
+    double t = (double)x / n; /* periodic form: x = 0 is the edge */
+    double a = alpha > 1 ? 1 : alpha;
+    if (t < a / 2)
+        return 0.5 * (1 - cos(2 * M_PI * t / a));
+    if (t > 1 - a / 2)
+        return 0.5 * (1 - cos(2 * M_PI * (1 - t) / a));
+    return 1.0;
+}
+
+int powspec_window(int kind, double alpha, int w, int h, float *win)
+{
+    if (!win || w <= 0 || h <= 0)
+        return SL_EINVAL;
+    double a;
+    switch (kind) {
+    case POWSPEC_WIN_NONE: a = 0; break;
+    case POWSPEC_WIN_HANN: a = 1; break;
+    case POWSPEC_WIN_TUKEY:
+        if (!(alpha >= 0 && alpha <= 1))
+            return SL_EINVAL;
+        a = alpha;
+        break;
+    default: return SL_EINVAL;
+    }
+    for (int y = 0; y < h; y++) {
+        double wy = win1(y, h, a);
+        for (int x = 0; x < w; x++)
+            win[(size_t)y * w + x] = (float)(wy * win1(x, w, a));
+    }
+    return SL_OK;
+}
+
+powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
+{
+    powspec_opts def;
+    if (!o) {
+        powspec_opts_default(&def);
+        o = &def;
+    }
+    if (w < 4 || h < 4) {
+        sl_seterr(err, SL_EINVAL, "powspec: frame %dx%d too small", w, h);
+        return NULL;
+    }
+    if (o->window < POWSPEC_WIN_NONE || o->window > POWSPEC_WIN_TUKEY ||
+        (o->window == POWSPEC_WIN_TUKEY &&
+         !(o->tukey_alpha >= 0 && o->tukey_alpha <= 1))) {
+        sl_seterr(err, SL_EINVAL, "powspec: bad window %d (alpha %g)",
+                  o->window, o->tukey_alpha);
+        return NULL;
+    }
+    if (o->bias < POWSPEC_BIAS_NONE || o->bias > POWSPEC_BIAS_FLOOR ||
+        (o->bias == POWSPEC_BIAS_PHOTON && !(o->adu_per_photon > 0)) ||
+        (o->bias == POWSPEC_BIAS_FLOOR && !(o->floor_rho > 0))) {
+        sl_seterr(err, SL_EINVAL,
+                  "powspec: bad bias mode %d (gain %g, floor rho %g)",
+                  o->bias, o->adu_per_photon, o->floor_rho);
+        return NULL;
+    }
+    powspec *p = calloc(1, sizeof *p);
+    if (!p)
+        goto fail_nomem;
+    size_t n = (size_t)w * h, nh = (size_t)h * (w / 2 + 1);
+    p->w = w;
+    p->h = h;
+    p->wc = w / 2 + 1;
+    p->o = *o;
+    p->in = fftwf_alloc_real(n);
+    p->out = fftwf_alloc_complex(nh);
+    p->ps = calloc(nh, sizeof *p->ps);
+    p->ft = calloc(nh, sizeof *p->ft);
+    if (!p->in || !p->out || !p->ps || !p->ft)
+        goto fail_alloc;
+    if (o->window != POWSPEC_WIN_NONE) {
+        p->win = malloc(n * sizeof *p->win);
+        if (!p->win)
+            goto fail_alloc;
+        powspec_window(o->window, o->tukey_alpha, w, h, p->win);
+    }
+    /* MEASURE overwrites the buffers while planning: nothing is in them. */
+    p->plan = fftwf_plan_dft_r2c_2d(h, w, p->in, p->out,
+                                    o->measure ? FFTW_MEASURE : FFTW_ESTIMATE);
+    if (!p->plan)
+        goto fail_alloc;
+    return p;
+fail_alloc:
+    powspec_free(p);
+fail_nomem:
+    sl_seterr(err, SL_ENOMEM, "powspec: out of memory for %dx%d", w, h);
+    return NULL;
+}
+
+void powspec_free(powspec *p)
+{
+    if (!p)
+        return;
+    if (p->plan)
+        fftwf_destroy_plan(p->plan);
+    fftwf_free(p->in);
+    fftwf_free(p->out);
+    free(p->win);
+    free(p->ps);
+    free(p->ft);
+    free(p);
+}
+
+const char *powspec_errmsg(const powspec *p)
+{
+    return p ? p->err.msg : "no powspec handle";
+}
+
+int powspec_add(powspec *p, const float *frame)
+{
+    if (!p || !frame)
+        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
+                         "powspec_add: NULL argument");
+    size_t n = (size_t)p->w * p->h, nh = (size_t)p->h * p->wc;
+    double flux = 0, w2flux = 0;
+    for (size_t i = 0; i < n; i++) {
+        float v = frame[i];
+        if (!isfinite(v))
+            return sl_seterr(&p->err, SL_EDATA,
+                             "powspec_add: frame %d pixel %zu is not finite",
+                             p->n, i);
+        float wv = p->win ? p->win[i] : 1.0f;
+        p->in[i] = wv * v;
+        flux += v;
+        w2flux += (double)wv * wv * v;
+    }
+    fftwf_execute(p->plan);
+    for (size_t k = 0; k < nh; k++) {
+        double re = crealf(p->out[k]), im = cimagf(p->out[k]);
+        p->ps[k] += re * re + im * im;
+        p->ft[k] += re + I * im;
+    }
+    p->flux += flux;
+    p->pbias += p->o.adu_per_photon * w2flux;
+    p->n++;
+    return SL_OK;
+}
+
+int powspec_nframes(const powspec *p) { return p ? p->n : 0; }
+
+double powspec_mean_flux(const powspec *p)
+{
+    return p && p->n ? p->flux / p->n : 0.0;
+}
+
+/* Half-plane index of full-plane index (i, j), and whether it is the
+ * conjugate mirror. */
+static size_t half_index(const powspec *p, int i, int j, int *mirror)
+{
+    *mirror = i >= p->wc;
+    if (*mirror) {
+        i = (p->w - i) % p->w;
+        j = (p->h - j) % p->h;
+    }
+    return (size_t)j * p->wc + i;
+}
+
+static double rho_of(int i, int j, int w, int h)
+{
+    int pf = i <= (w - 1) / 2 ? i : i - w;
+    int qf = j <= (h - 1) / 2 ? j : j - h;
+    return hypot(pf / (0.5 * w), qf / (0.5 * h));
+}
+
+/* Mean (and optionally std) of the full-plane spectrum over rho > rho0;
+ * returns the number of frequencies there. */
+static size_t floor_stats(const double *ps, int w, int h, double rho0,
+                          double *mean, double *sd)
+{
+    double s = 0, s2 = 0;
+    size_t m = 0;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++)
+            if (rho_of(i, j, w, h) > rho0) {
+                double v = ps[(size_t)j * w + i];
+                s += v;
+                s2 += v * v;
+                m++;
+            }
+    *mean = m ? s / m : 0;
+    if (sd)
+        *sd = m > 1 ? sqrt(fmax(s2 / m - *mean * *mean, 0)) : 0;
+    return m;
+}
+
+double powspec_bias(const powspec *p)
+{
+    if (!p || !p->n)
+        return 0.0;
+    if (p->o.bias == POWSPEC_BIAS_PHOTON)
+        return p->pbias / p->n;
+    if (p->o.bias == POWSPEC_BIAS_FLOOR) {
+        /* The floor_stats region, read through the half plane. */
+        double s = 0;
+        size_t m = 0;
+        for (int j = 0; j < p->h; j++)
+            for (int i = 0; i < p->w; i++)
+                if (rho_of(i, j, p->w, p->h) > p->o.floor_rho) {
+                    int mir;
+                    s += p->ps[half_index(p, i, j, &mir)];
+                    m++;
+                }
+        return m ? s / m / p->n : 0.0;
+    }
+    return 0.0;
+}
+
+int powspec_result(powspec *p, double *ps)
+{
+    if (!p || !ps)
+        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
+                         "powspec_result: NULL argument");
+    if (!p->n)
+        return sl_seterr(&p->err, SL_EDATA, "powspec_result: no frames");
+    double b = powspec_bias(p), inv = 1.0 / p->n;
+    for (int j = 0; j < p->h; j++)
+        for (int i = 0; i < p->w; i++) {
+            int mir;
+            ps[(size_t)j * p->w + i] =
+                p->ps[half_index(p, i, j, &mir)] * inv - b;
+        }
+    return SL_OK;
+}
+
+int powspec_mean_ft(const powspec *p, double complex *ft)
+{
+    if (!p || !ft || !p->n)
+        return SL_EINVAL;
+    double inv = 1.0 / p->n;
+    for (int j = 0; j < p->h; j++)
+        for (int i = 0; i < p->w; i++) {
+            int mir;
+            double complex v = p->ft[half_index(p, i, j, &mir)] * inv;
+            ft[(size_t)j * p->w + i] = mir ? conj(v) : v;
+        }
+    return SL_OK;
+}
+
+int powspec_modulus(const double *ps_obj, const double *ps_ref, int w, int h,
+                    double eps_rel, double *modulus)
+{
+    if (!ps_obj || !modulus || w <= 0 || h <= 0)
+        return SL_EINVAL;
+    size_t n = (size_t)w * h;
+    if (!ps_ref) {
+        for (size_t k = 0; k < n; k++)
+            modulus[k] = sqrt(fmax(ps_obj[k], 0.0));
+        return SL_OK;
+    }
+    if (!(ps_ref[0] > 0) || !(eps_rel > 0))
+        return SL_EINVAL;
+    double t0 = 1.0 / ps_ref[0];
+    for (size_t k = 0; k < n; k++) {
+        double t = fmax(ps_ref[k] * t0, 0.0);
+        modulus[k] = sqrt(fmax(ps_obj[k], 0.0) / (t + eps_rel));
+    }
+    return SL_OK;
+}
+
+int powspec_support(const double *ps, int w, int h, double nsigma,
+                    double rel_min, double floor_rho, unsigned char *mask,
+                    double *rcut_px)
+{
+    if (!ps || !mask || w < 4 || h < 4)
+        return SL_EINVAL;
+    double fm, fsd;
+    size_t m = floor_stats(ps, w, h, floor_rho, &fm, &fsd);
+    double thr = fmax(m ? fm + nsigma * fsd : 0.0, rel_min * ps[0]);
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            int nyq = (w % 2 == 0 && i == w / 2) || (h % 2 == 0 && j == h / 2);
+            mask[(size_t)j * w + i] = !nyq && ps[(size_t)j * w + i] > thr;
+        }
+    /* Drop isolated pixels: a real patch of the transfer function is
+     * several pixels wide, a lone noise spike is not.  The test reads the
+     * mask as it was (neighbours are checked against ps, not the edited
+     * mask), so the result is independent of scan order and symmetric. */
+    double rmax = 0;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            size_t k = (size_t)j * w + i;
+            if (!mask[k] || k == 0)
+                continue;
+            int nb = 0;
+            int ii[4] = {(i + 1) % w, (i + w - 1) % w, i, i};
+            int jj[4] = {j, j, (j + 1) % h, (j + h - 1) % h};
+            for (int t = 0; t < 4; t++) {
+                int nyq = (w % 2 == 0 && ii[t] == w / 2) ||
+                          (h % 2 == 0 && jj[t] == h / 2);
+                nb += !nyq && ps[(size_t)jj[t] * w + ii[t]] > thr;
+            }
+            if (!nb)
+                mask[k] = 2; /* marked; cleared below */
+        }
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            size_t k = (size_t)j * w + i;
+            if (mask[k] == 2)
+                mask[k] = 0;
+            if (mask[k]) {
+                int pf = i <= (w - 1) / 2 ? i : i - w;
+                int qf = j <= (h - 1) / 2 ? j : j - h;
+                double r = hypot(pf, qf);
+                rmax = r > rmax ? r : rmax;
+            }
+        }
+    mask[0] = 1;
+    if (rcut_px)
+        *rcut_px = rmax;
+    return SL_OK;
+}

@@ -1,0 +1,944 @@
+/* test_usb.c - drivers/usb under umockdev: no USB hardware, no privileges.
+ *
+ * How it works: the binary re-executes itself with
+ * LD_PRELOAD=libumockdev-preload.so.0 (what umockdev-wrapper does), so
+ * that each test can build a UMockdevTestbed in-process.  The testbed
+ * redirects /sys and /dev into a temporary directory, fakes udev
+ * (enumeration and uevents over an emulated netlink socket), and routes
+ * ioctl()s on /dev/bus/usb/BBB/DDD to the "handle-ioctl" signal of a
+ * UMockdevIoctlBase: that handler below is the USB mock.  libusb, loaded
+ * normally, sees real-looking sysfs devices ("descriptors", "speed",
+ * busnum/devnum), opens their device nodes and talks usbfs ioctls to the
+ * mock: GET_CAPABILITIES, RESET, and control URBs (SUBMITURB / REAPURB)
+ * for string descriptors.  The handler runs on umockdev's own thread,
+ * hence the atomics.
+ *
+ * Permission: root bypasses file modes, so the permission test re-runs
+ * this binary as uid/gid 65534 (nobody) against the same testbed, where
+ * the device node is root:root 0664 (the usual default): the kernel
+ * itself refuses the O_RDWR open() with EACCES, as with a real
+ * /dev/bus/usb node.
+ */
+#include "tcheck.h"
+#include "usb.h"
+
+#include <errno.h>
+#include <grp.h>
+#include <sys/ioctl.h>
+#include <linux/usbdevice_fs.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <umockdev.h>
+#include <unistd.h>
+
+#define PRELOAD_LIB "libumockdev-preload.so.0"
+#define NOBODY 65534
+
+/* ---- the USB mock ---- */
+
+typedef struct pending {
+    UMockdevIoctlData *urb, *buf;
+} pending;
+
+typedef struct mock {
+    UMockdevTestbed *tb;
+    UMockdevIoctlBase *handler;
+    char *root;
+    int n_reset;          /* USBDEVFS_RESET seen (atomic) */
+    int reset_errno;      /* answer RESET with this errno, 0 = success */
+    int n_unknown;        /* ioctls the mock did not know (atomic) */
+    char last_reset[64];  /* device node of the last reset */
+    const char *strings[3]; /* string descriptors 1..3 */
+    GMutex lock;
+    GQueue urbs; /* submitted control URBs waiting to be reaped */
+} mock;
+
+typedef struct fake_dev {
+    int bus, addr, port;
+    uint16_t vid, pid, bcd_usb;
+    int kind;        /* FAKE_U3V, FAKE_UVC (webcam), FAKE_DISK */
+    int speed_mbit;  /* sysfs "speed" */
+    const char *manufacturer, *product, *serial; /* sysfs; NULL: absent */
+} fake_dev;
+
+enum { FAKE_U3V, FAKE_UVC, FAKE_DISK };
+
+/* Answer a GET_DESCRIPTOR(string) control request into buf (after the
+ * 8-byte setup packet); returns the length or -1 to stall. */
+static int string_descriptor(mock *m, const uint8_t *setup, uint8_t *out,
+                             int cap)
+{
+    int idx = setup[2], len = 0;
+    uint8_t d[2 + 2 * 64];
+    if (setup[1] != 6 || setup[3] != 3) /* GET_DESCRIPTOR, type STRING */
+        return -1;
+    if (idx == 0) { /* language table: en-US */
+        d[2] = 0x09; d[3] = 0x04; len = 4;
+    } else if (idx <= 3 && m->strings[idx - 1]) {
+        const char *s = m->strings[idx - 1];
+        for (len = 2; *s && len < (int)sizeof d; s++, len += 2) {
+            d[len] = (uint8_t)*s; d[len + 1] = 0;
+        }
+    } else
+        return -1;
+    d[0] = (uint8_t)len; d[1] = 3;
+    int want = setup[6] | setup[7] << 8;
+    len = len < want ? len : want;
+    len = len < cap ? len : cap;
+    memcpy(out, d, (size_t)len);
+    return len;
+}
+
+static void submit_urb(mock *m, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
+{
+    UMockdevIoctlData *ud = umockdev_ioctl_data_resolve(
+        arg, 0, sizeof(struct usbdevfs_urb), NULL);
+    struct usbdevfs_urb *urb = (struct usbdevfs_urb *)ud->data;
+    if (urb->type != USBDEVFS_URB_TYPE_CONTROL || urb->buffer_length < 8) {
+        umockdev_ioctl_data_unref(ud);
+        umockdev_ioctl_client_complete(c, -1, EINVAL);
+        return;
+    }
+    pending *p = g_new0(pending, 1);
+    p->urb = ud;
+    p->buf = umockdev_ioctl_data_resolve(
+        ud, G_STRUCT_OFFSET(struct usbdevfs_urb, buffer),
+        (gsize)urb->buffer_length, NULL);
+    g_mutex_lock(&m->lock);
+    g_queue_push_tail(&m->urbs, p);
+    g_mutex_unlock(&m->lock);
+    umockdev_ioctl_client_complete(c, 0, 0);
+}
+
+/* Complete the oldest URB: the data appears at reap time, as with the
+ * kernel. */
+static void reap_urb(mock *m, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
+{
+    g_mutex_lock(&m->lock);
+    pending *p = g_queue_pop_head(&m->urbs);
+    g_mutex_unlock(&m->lock);
+    if (!p) {
+        umockdev_ioctl_client_complete(c, -1, EAGAIN);
+        return;
+    }
+    struct usbdevfs_urb *urb = (struct usbdevfs_urb *)p->urb->data;
+    int n = string_descriptor(m, p->buf->data, p->buf->data + 8,
+                              urb->buffer_length - 8);
+    urb->status = n < 0 ? -EPIPE : 0;
+    urb->actual_length = n < 0 ? 0 : n;
+    UMockdevIoctlData *ptr = umockdev_ioctl_data_resolve(arg, 0,
+                                                         sizeof(void *), NULL);
+    umockdev_ioctl_data_set_ptr(ptr, 0, p->urb);
+    umockdev_ioctl_client_complete(c, 0, 0);
+    umockdev_ioctl_data_unref(ptr);
+    umockdev_ioctl_data_unref(p->buf);
+    umockdev_ioctl_data_unref(p->urb);
+    g_free(p);
+}
+
+static gboolean on_ioctl(UMockdevIoctlBase *h, UMockdevIoctlClient *c,
+                         gpointer userdata)
+{
+    mock *m = userdata;
+    UMockdevIoctlData *arg = umockdev_ioctl_client_get_arg(c);
+    (void)h;
+    switch (umockdev_ioctl_client_get_request(c)) {
+    case USBDEVFS_GET_CAPABILITIES: {
+        UMockdevIoctlData *d = umockdev_ioctl_data_resolve(arg, 0, 4, NULL);
+        memset(d->data, 0, 4); /* no optional usbfs features */
+        umockdev_ioctl_client_complete(c, 0, 0);
+        umockdev_ioctl_data_unref(d);
+        return TRUE;
+    }
+    case USBDEVFS_RESET:
+        g_mutex_lock(&m->lock);
+        g_strlcpy(m->last_reset, umockdev_ioctl_client_get_devnode(c),
+                  sizeof m->last_reset);
+        g_mutex_unlock(&m->lock);
+        g_atomic_int_inc(&m->n_reset);
+        umockdev_ioctl_client_complete(c, m->reset_errno ? -1 : 0,
+                                       m->reset_errno);
+        return TRUE;
+    case USBDEVFS_CLAIMINTERFACE:
+    case USBDEVFS_RELEASEINTERFACE:
+        umockdev_ioctl_client_complete(c, 0, 0);
+        return TRUE;
+    case USBDEVFS_SUBMITURB:
+        submit_urb(m, c, arg);
+        return TRUE;
+    case USBDEVFS_REAPURB:
+    case USBDEVFS_REAPURBNDELAY:
+        reap_urb(m, c, arg);
+        return TRUE;
+    default:
+        g_atomic_int_inc(&m->n_unknown);
+        umockdev_ioctl_client_complete(c, -1, ENOTTY);
+        return TRUE;
+    }
+}
+
+/* Is the preload library mapped in this process (not merely named in
+ * $LD_PRELOAD: ld.so skips a library it cannot load)? */
+static int preloaded(void)
+{
+    char line[1024];
+    int found = 0;
+    FILE *maps = fopen("/proc/self/maps", "r");
+    while (maps && !found && fgets(line, sizeof line, maps))
+        found = strstr(line, "/libumockdev-preload.so") != NULL;
+    if (maps)
+        fclose(maps);
+    return found;
+}
+
+static int mock_init(mock *m)
+{
+    memset(m, 0, sizeof *m);
+    if (!preloaded())
+        return -1;
+    g_mutex_init(&m->lock);
+    g_queue_init(&m->urbs);
+    m->tb = umockdev_testbed_new();
+    m->root = umockdev_testbed_get_root_dir(m->tb);
+    m->handler = umockdev_ioctl_base_new();
+    g_signal_connect(m->handler, "handle-ioctl", G_CALLBACK(on_ioctl), m);
+    return 0;
+}
+
+static void mock_done(mock *m)
+{
+    pending *p;
+    if (!m->tb)
+        return;
+    while ((p = g_queue_pop_head(&m->urbs))) {
+        umockdev_ioctl_data_unref(p->buf);
+        umockdev_ioctl_data_unref(p->urb);
+        g_free(p);
+    }
+    g_object_unref(m->handler);
+    g_object_unref(m->tb);
+    g_free(m->root);
+    g_mutex_clear(&m->lock);
+}
+
+static void hex(GString *s, const uint8_t *b, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        g_string_append_printf(s, "%02x", b[i]);
+}
+
+/* Device + configuration descriptors as the kernel exposes them in the
+ * sysfs "descriptors" attribute. */
+static void descriptors(const fake_dev *f, GString *s)
+{
+    static const uint8_t u3v[] = {
+        8, 0x0B, 0, 3, 0xEF, 0x05, 0x00, 0,          /* IAD: U3V function */
+        9, 4, 0, 0, 2, 0xEF, 0x05, 0x00, 0,          /* control */
+        7, 5, 0x81, 2, 0x00, 0x04, 0, 7, 5, 0x01, 2, 0x00, 0x04, 0,
+        9, 4, 1, 0, 1, 0xEF, 0x05, 0x01, 0,          /* event */
+        7, 5, 0x82, 2, 0x00, 0x04, 0,
+        9, 4, 2, 0, 1, 0xEF, 0x05, 0x02, 0,          /* streaming */
+        7, 5, 0x83, 2, 0x00, 0x04, 0};
+    static const uint8_t uvc[] = {
+        8, 0x0B, 0, 2, 0x0E, 0x03, 0x00, 0,          /* IAD: video */
+        9, 4, 0, 0, 1, 0x0E, 0x01, 0x00, 0,          /* video control */
+        7, 5, 0x81, 3, 0x10, 0x00, 6,
+        9, 4, 1, 0, 1, 0x0E, 0x02, 0x00, 0,          /* video streaming */
+        7, 5, 0x82, 2, 0x00, 0x02, 0};
+    static const uint8_t disk[] = {
+        9, 4, 0, 0, 2, 0x08, 0x06, 0x50, 0,          /* mass storage */
+        7, 5, 0x81, 2, 0x00, 0x02, 0, 7, 5, 0x02, 2, 0x00, 0x02, 0};
+    const uint8_t *body = f->kind == FAKE_U3V   ? u3v
+                          : f->kind == FAKE_UVC ? uvc
+                                                : disk;
+    size_t nb = f->kind == FAKE_U3V   ? sizeof u3v
+                : f->kind == FAKE_UVC ? sizeof uvc
+                                      : sizeof disk;
+    uint8_t nif = f->kind == FAKE_U3V ? 3 : f->kind == FAKE_UVC ? 2 : 1;
+    uint8_t cls = f->kind == FAKE_DISK ? 0x00 : 0xEF; /* IAD: EF/02/01 */
+    uint8_t dev[18] = {18, 1, (uint8_t)f->bcd_usb, (uint8_t)(f->bcd_usb >> 8),
+                       cls, cls ? 0x02 : 0, cls ? 0x01 : 0,
+                       f->bcd_usb >= 0x300 ? 9 : 64,
+                       (uint8_t)f->vid, (uint8_t)(f->vid >> 8),
+                       (uint8_t)f->pid, (uint8_t)(f->pid >> 8), 0x00, 0x01,
+                       1, 2, 3, 1};
+    size_t total = 9 + nb;
+    uint8_t cfg[9] = {9, 2, (uint8_t)total, (uint8_t)(total >> 8), nif, 1, 0,
+                      0x80, 50};
+    hex(s, dev, sizeof dev);
+    hex(s, cfg, sizeof cfg);
+    hex(s, body, nb);
+}
+
+static char *syspath_of(const fake_dev *f)
+{
+    return g_strdup_printf("/sys/devices/pci0000:00/0000:00:14.0/usb%d/%d-%d",
+                           f->bus, f->bus, f->port);
+}
+
+/* Add f to the testbed: sysfs device, udev properties, device node and
+ * the ioctl handler on it (attached first, so an "add" uevent never
+ * announces a device whose node cannot answer yet). */
+static int mock_add(mock *m, const fake_dev *f)
+{
+    GString *s = g_string_new(NULL);
+    char *node = g_strdup_printf("/dev/bus/usb/%03d/%03d", f->bus, f->addr);
+    char *sys = syspath_of(f);
+    GError *e = NULL;
+    int ok = umockdev_testbed_attach_ioctl(m->tb, node, m->handler, &e);
+    g_string_append_printf(s, "P: %s\nN: %s\n", sys + 4, node + 5);
+    g_string_append_printf(s, "E: SUBSYSTEM=usb\nE: DEVTYPE=usb_device\n"
+                           "E: DRIVER=usb\nE: BUSNUM=%03d\nE: DEVNUM=%03d\n"
+                           "E: DEVNAME=%s\n", f->bus, f->addr, node);
+    g_string_append_printf(s, "A: busnum=%d\\n\nA: devnum=%d\\n\n"
+                           "A: speed=%d\\n\nA: bConfigurationValue=1\\n\n",
+                           f->bus, f->addr, f->speed_mbit);
+    if (f->manufacturer)
+        g_string_append_printf(s, "A: manufacturer=%s\\n\n", f->manufacturer);
+    if (f->product)
+        g_string_append_printf(s, "A: product=%s\\n\n", f->product);
+    if (f->serial)
+        g_string_append_printf(s, "A: serial=%s\\n\n", f->serial);
+    g_string_append(s, "H: descriptors=");
+    descriptors(f, s);
+    g_string_append_c(s, '\n');
+    if (ok)
+        ok = umockdev_testbed_add_from_string(m->tb, s->str, &e);
+    if (!ok)
+        fprintf(stderr, "mock_add: %s\n", e ? e->message : "?");
+    g_clear_error(&e);
+    g_string_free(s, TRUE);
+    g_free(node);
+    g_free(sys);
+    return ok ? 0 : -1;
+}
+
+/* Unplug: the "remove" uevent first (while sysfs still answers), then
+ * the sysfs tree, as the kernel does. */
+static void mock_remove(mock *m, const fake_dev *f)
+{
+    char *sys = syspath_of(f);
+    umockdev_testbed_uevent(m->tb, sys, "remove");
+    umockdev_testbed_remove_device(m->tb, sys);
+    g_free(sys);
+}
+
+static const fake_dev CAM = {2, 3, 1, 0x1ab2, 0x0001, 0x0300, FAKE_U3V, 5000,
+                             "Specklab", "SpeckCam U3", "SC0042"};
+static const fake_dev CAM2 = {3, 2, 4, 0x2b1c, 0x0010, 0x0310, FAKE_U3V, 5000,
+                              "OtherVision", "OV-5", "77"};
+static const fake_dev WEBCAM = {1, 4, 2, 0x046d, 0x0825, 0x0200, FAKE_UVC,
+                                480, "Logitech", "Webcam C270", NULL};
+static const fake_dev DISK = {1, 5, 3, 0x0781, 0x5581, 0x0320, FAKE_DISK,
+                              5000, "SanDisk", "Ultra", "4C53"};
+
+/* A testbed holding devs[0..n) (NULL entries skipped) and a usb handle
+ * on it.  1: not preloaded; -1: failed, nothing left behind. */
+static int setup(mock *m, usb **u, const fake_dev *const *devs, int n)
+{
+    *u = NULL;
+    if (mock_init(m) != 0)
+        return 1;
+    for (int i = 0; i < n; i++)
+        if (devs[i] && mock_add(m, devs[i]) != 0) {
+            mock_done(m);
+            return -1;
+        }
+    if (usb_new(u, NULL) != SL_OK) {
+        mock_done(m);
+        return -1;
+    }
+    return 0;
+}
+
+#define SETUP(m, u, ...)                                                      \
+    do {                                                                      \
+        const fake_dev *devs_[] = {__VA_ARGS__};                              \
+        int r_ = setup(m, u, devs_, (int)(sizeof devs_ / sizeof devs_[0]));   \
+        if (r_ == 1)                                                          \
+            SKIP("not running under " PRELOAD_LIB);                           \
+        CHECK(r_ == 0, "cannot build the testbed");                           \
+    } while (0)
+
+static void teardown(mock *m, usb *u)
+{
+    usb_free(u);
+    mock_done(m);
+}
+
+static const usb_dev_info *find(const usb_dev_info *d, int n, uint16_t vid)
+{
+    for (int i = 0; i < n; i++)
+        if (d[i].vid == vid)
+            return &d[i];
+    return NULL;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- diagnosis reports ---- */
+
+typedef struct item {
+    int has_dev;
+    usb_dev_info dev;
+    usb_finding f;
+} item;
+
+typedef struct report {
+    int n;
+    item it[16];
+} report;
+
+static void collect(const usb_dev_info *d, const usb_finding *f, void *ud)
+{
+    report *r = ud;
+    if (r->n >= (int)(sizeof r->it / sizeof r->it[0]))
+        return;
+    r->it[r->n].has_dev = d != NULL;
+    if (d)
+        r->it[r->n].dev = *d;
+    r->it[r->n].f = *f;
+    r->n++;
+}
+
+/* The finding of check c about the device with vid (0: system-wide). */
+static const item *finding_of(const report *r, usb_check c, uint16_t vid)
+{
+    for (int i = 0; i < r->n; i++)
+        if (r->it[i].f.check == c &&
+            (vid ? r->it[i].has_dev && r->it[i].dev.vid == vid
+                 : !r->it[i].has_dev))
+            return &r->it[i];
+    return NULL;
+}
+
+/* ---- hot-plug event log ---- */
+
+typedef struct evlog {
+    int n;
+    struct {
+        usb_event_kind kind;
+        usb_dev_info d;
+    } e[16];
+} evlog;
+
+static void log_event(usb_event_kind kind, const usb_dev_info *d, void *ud)
+{
+    evlog *l = ud;
+    if (l->n < (int)(sizeof l->e / sizeof l->e[0])) {
+        l->e[l->n].kind = kind;
+        l->e[l->n].d = *d;
+        l->n++;
+    }
+}
+
+static int count_events(const evlog *l, usb_event_kind kind, uint16_t vid)
+{
+    int k = 0;
+    for (int i = 0; i < l->n; i++)
+        k += l->e[i].kind == kind && l->e[i].d.vid == vid;
+    return k;
+}
+
+/* Pump events until kind/vid has been delivered, at most 5 s. */
+static int wait_event(usb *u, const evlog *l, usb_event_kind kind, uint16_t vid)
+{
+    double end = now_s() + 5.0;
+    while (count_events(l, kind, vid) == 0 && now_s() < end)
+        if (usb_poll(u, 100) != SL_OK)
+            return 0;
+    return count_events(l, kind, vid) > 0;
+}
+
+/* ---- tests ---- */
+
+TEST(enumerate_identifies_u3v)
+{
+    mock m;
+    usb *u;
+    usb_dev_info d[8], one[1];
+    int n = -1, n_small = -1;
+    char label[256];
+    SETUP(&m, &u, &CAM, &WEBCAM, &DISK);
+    int r = usb_list(u, d, 8, &n);
+    int r_small = usb_list(u, one, 1, &n_small);
+    teardown(&m, u);
+    const usb_dev_info *cam = find(d, n, CAM.vid);
+    const usb_dev_info *web = find(d, n, WEBCAM.vid);
+    const usb_dev_info *disk = find(d, n, DISK.vid);
+    CHECK(r == SL_OK && n == 3 && cam && web && disk, "listed %d devices", n);
+    usb_dev_label(cam, label, sizeof label);
+    CHECK(cam->is_u3v && cam->u3v_ifaces == 7u && cam->bus == 2 &&
+              cam->address == 3 && cam->n_ports == 1 &&
+              cam->port_path[0] == 1 &&
+              cam->pid == CAM.pid && cam->bcd_usb == 0x0300 &&
+              cam->speed == USB_SPEED_SUPER && cam->link_mbit_per_s == 5000 &&
+              strcmp(cam->product, "SpeckCam U3") == 0 &&
+              strcmp(cam->manufacturer, "Specklab") == 0 &&
+              strcmp(cam->serial, "SC0042") == 0,
+          "camera misread: %s u3v=%d ifaces=%u speed=%d", label, cam->is_u3v,
+          cam->u3v_ifaces, cam->speed);
+    /* The webcam has the device class of a U3V camera (0xEF, IAD): only
+     * its interfaces (video, 0x0E) tell it apart. */
+    CHECK(!web->is_u3v && web->u3v_ifaces == 0 && web->dev_class == 0xEF &&
+              web->speed == USB_SPEED_HIGH && !disk->is_u3v &&
+              disk->dev_class == 0,
+          "a non-camera device was taken for a U3V camera");
+    CHECK(strcmp(label, "SpeckCam U3 (1ab2:0001, serial SC0042) on bus 2 "
+                 "port 1") == 0, "label \"%s\"", label);
+    CHECK(r_small == SL_OK && n_small == 3, "short list: %d devices", n_small);
+}
+
+/* A USB3 camera on a USB 2.0 link gets the warning, one on a 5 Gbit/s
+ * link does not; non-cameras only appear with USB_DIAG_ALL_DEVICES. */
+TEST(link_speed)
+{
+    mock m;
+    usb *u;
+    fake_dev slow = CAM;
+    slow.speed_mbit = 480;
+    SETUP(&m, &u, &slow, &CAM2, &WEBCAM);
+    report *cams = g_new0(report, 1), *all = g_new0(report, 1);
+    int r1 = usb_diagnose(u, 0, collect, cams);
+    int r2 = usb_diagnose(u, USB_DIAG_ALL_DEVICES, collect, all);
+    teardown(&m, u);
+    const item *sp = finding_of(cams, USB_CHECK_SPEED, CAM.vid);
+    const item *ok = finding_of(cams, USB_CHECK_SPEED, CAM2.vid);
+    const item *ac = finding_of(cams, USB_CHECK_ACCESS, CAM.vid);
+    const item *web = finding_of(all, USB_CHECK_SPEED, WEBCAM.vid);
+    item spi = sp ? *sp : (item){0}, oki = ok ? *ok : (item){0};
+    int n_cams = cams->n, web_in_cams = !!finding_of(cams, USB_CHECK_SPEED,
+                                                     WEBCAM.vid);
+    int ac_ok = ac && ac->f.level == USB_LEVEL_OK &&
+                strstr(ac->f.text, "can open /dev/bus/usb/002/003");
+    int web_ok = web && web->f.level == USB_LEVEL_OK;
+    g_free(cams);
+    g_free(all);
+    CHECK(r1 == SL_OK && r2 == SL_OK, "usb_diagnose failed");
+    /* usbfs + (speed, access) per camera; the webcam is not a camera. */
+    CHECK(n_cams == 5 && !web_in_cams, "%d findings without ALL", n_cams);
+    CHECK(sp && spi.f.level == USB_LEVEL_WARN, "no speed warning");
+    CHECK(strstr(spi.f.text, "camera SpeckCam U3 (1ab2:0001, serial SC0042) "
+                 "on bus 2 port 1 is on a USB 2.0 link (480 Mbit/s): use a "
+                 "USB3 port/cable") != NULL, "text: %s", spi.f.text);
+    CHECK(strstr(spi.f.fix, "USB 3") != NULL, "fix: %s", spi.f.fix);
+    CHECK(ok && oki.f.level == USB_LEVEL_OK && oki.f.fix[0] == '\0' &&
+              strstr(oki.f.text, "5000 Mbit/s link"),
+          "super-speed camera: level %d: %s", (int)oki.f.level, oki.f.text);
+    CHECK(ac_ok, "root could not open the mock camera");
+    CHECK(web_ok, "a USB 2.0 webcam on a USB 2.0 link is fine");
+}
+
+static int write_text(const char *path, const char *text)
+{
+    char *dir = g_path_get_dirname(path);
+    int r = g_mkdir_with_parents(dir, 0755);
+    g_free(dir);
+    return r == 0 && g_file_set_contents(path, text, -1, NULL) ? 0 : -1;
+}
+
+/* usbfs_memory_mb is read under $UMOCKDEV_DIR/sys: the file exists only
+ * in the testbed. */
+TEST(usbfs_memory_limit)
+{
+    static const struct {
+        const char *text; /* NULL: no file */
+        int mb;
+        usb_level level;
+    } cases[] = {{NULL, -1, USB_LEVEL_INFO}, {"16\n", 16, USB_LEVEL_WARN},
+                 {"255\n", 255, USB_LEVEL_WARN}, {"256\n", 256, USB_LEVEL_OK},
+                 {"0\n", 0, USB_LEVEL_OK}, {"1000\n", 1000, USB_LEVEL_OK}};
+    mock m;
+    usb *u;
+    usb_finding f = {0};
+    int bad = -1, mb = 0;
+    SETUP(&m, &u, NULL);
+    char *path = g_strdup_printf("%s/sys/module/usbcore/parameters/"
+                                 "usbfs_memory_mb", m.root);
+    for (int i = 0; i < (int)(sizeof cases / sizeof cases[0]) && bad < 0; i++) {
+        if (cases[i].text && write_text(path, cases[i].text) != 0)
+            bad = i;
+        else if (usb_check_usbfs_memory(u, &f, &mb) != SL_OK ||
+                 mb != cases[i].mb || f.level != cases[i].level ||
+                 f.check != USB_CHECK_USBFS_MEMORY)
+            bad = i;
+        else if (f.level == USB_LEVEL_WARN &&
+                 (!strstr(f.text, USB_USBFS_MEMORY_PATH) ||
+                  !strstr(f.fix, "usbcore.usbfs_memory_mb=") ||
+                  !strstr(f.fix, "/etc/default/grub")))
+            bad = i;
+        else if (mb == 0 && !strstr(f.text, "unlimited"))
+            bad = i;
+    }
+    report *r = g_new0(report, 1);
+    usb_diagnose(u, 0, collect, r); /* system-wide finding, reported first */
+    int first_is_usbfs = r->n >= 1 && !r->it[0].has_dev &&
+                         r->it[0].f.check == USB_CHECK_USBFS_MEMORY;
+    g_free(r);
+    g_free(path);
+    teardown(&m, u);
+    CHECK(bad < 0, "case %d: mb %d level %d text \"%s\"", bad, mb,
+          (int)f.level, f.text);
+    CHECK(first_is_usbfs, "usb_diagnose did not report usbfs first");
+}
+
+/* ---- permission: an unprivileged child against the same testbed ---- */
+
+/* Child mode: diagnose bus:addr as uid NOBODY and print one line per
+ * finding: "level check<TAB>text<TAB>fix" (newlines in fix as '|'). */
+static int child_diagnose(const char *busaddr)
+{
+    usb *u = NULL;
+    usb_dev_info d[8];
+    int bus = 0, addr = 0, n = 0;
+    report r = {0};
+    if (sscanf(busaddr, "%d:%d", &bus, &addr) != 2)
+        return 2;
+    if (geteuid() == 0 &&
+        (setgroups(0, NULL) != 0 || setgid(NOBODY) != 0 || setuid(NOBODY) != 0))
+        return 3;
+    if (geteuid() == 0)
+        return 3;
+    if (usb_new(&u, NULL) != SL_OK || usb_list(u, d, 8, &n) != SL_OK)
+        return 4;
+    for (int i = 0; i < n && i < 8; i++)
+        if (d[i].bus == bus && d[i].address == addr)
+            usb_diagnose_device(u, &d[i], collect, &r);
+    for (int i = 0; i < r.n; i++) {
+        printf("%s %s\t%s\t", usb_level_name(r.it[i].f.level),
+               usb_check_name(r.it[i].f.check), r.it[i].f.text);
+        for (const char *c = r.it[i].f.fix; *c; c++)
+            putchar(*c == '\n' ? '|' : *c);
+        putchar('\n');
+    }
+    usb_free(u);
+    return 0;
+}
+
+/* Child mode --usbfs-child: print the usbfs limit usb.c reads. */
+static int child_usbfs(void)
+{
+    usb *u = NULL;
+    usb_finding f;
+    int mb = -2;
+    if (usb_new(&u, NULL) != SL_OK)
+        return 4;
+    usb_check_usbfs_memory(u, &f, &mb);
+    printf("%d\n", mb);
+    usb_free(u);
+    return 0;
+}
+
+/* Run this binary as "test_usb MODE ARG", without the umockdev preload
+ * when bare; its stdout into out (bounded: 10 s). */
+static int run_child(const char *mode, const char *arg, int bare, char *out,
+                     size_t cap, int *status)
+{
+    int fds[2];
+    size_t len = 0;
+    double end = now_s() + 10.0;
+    if (pipe(fds) != 0)
+        return -1;
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        dup2(fds[1], 1);
+        close(fds[0]);
+        close(fds[1]);
+        if (bare)
+            unsetenv("LD_PRELOAD");
+        execl("/proc/self/exe", "test_usb", mode, arg, (char *)NULL);
+        _exit(127);
+    }
+    close(fds[1]);
+    for (;;) {
+        struct pollfd p = {fds[0], POLLIN, 0};
+        int left_ms = (int)((end - now_s()) * 1000);
+        if (left_ms <= 0 || poll(&p, 1, left_ms) <= 0)
+            break;
+        ssize_t k = read(fds[0], out + len, cap - 1 - len);
+        if (k <= 0)
+            break;
+        len += (size_t)k;
+        if (len >= cap - 1)
+            break;
+    }
+    out[len] = '\0';
+    close(fds[0]);
+    if (now_s() >= end)
+        kill(pid, SIGKILL);
+    waitpid(pid, status, 0);
+    return 0;
+}
+
+/* Without the preload nothing redirects /sys: usb.c itself must read
+ * $UMOCKDEV_DIR/sys. */
+TEST(sysfs_root_from_umockdev_dir)
+{
+    char out[256] = "", *dir = g_dir_make_tmp("specklab-usb-XXXXXX", NULL);
+    int st = -1, r = -1;
+    CHECK(dir, "cannot make a temporary directory");
+    char *path = g_strdup_printf("%s/sys/module/usbcore/parameters/"
+                                 "usbfs_memory_mb", dir);
+    char *old = g_strdup(getenv("UMOCKDEV_DIR"));
+    if (write_text(path, "64\n") == 0) {
+        setenv("UMOCKDEV_DIR", dir, 1);
+        r = run_child("--usbfs-child", "-", 1, out, sizeof out, &st);
+        if (old)
+            setenv("UMOCKDEV_DIR", old, 1);
+        else
+            unsetenv("UMOCKDEV_DIR");
+    }
+    char *cmd = g_strdup_printf("rm -rf '%s'", dir);
+    int rm = system(cmd);
+    g_free(cmd);
+    g_free(path);
+    g_free(old);
+    g_free(dir);
+    CHECK(r == 0 && WIFEXITED(st) && WEXITSTATUS(st) == 0, "child failed");
+    CHECK(atoi(out) == 64, "read %s MB, want the 64 under $UMOCKDEV_DIR", out);
+    CHECK(rm == 0, "cannot remove the temporary directory");
+}
+
+TEST(permission_denied_gives_udev_rule)
+{
+    mock m;
+    usb *u;
+    char out[8192], node[600], sock[600], dflt[600];
+    int st = 0;
+    SETUP(&m, &u, &CAM);
+    usb_free(u);
+    snprintf(node, sizeof node, "%s/dev/bus/usb/002/003", m.root);
+    snprintf(sock, sizeof sock, "%s/ioctl/dev/bus/usb/002/003", m.root);
+    snprintf(dflt, sizeof dflt, "%s/ioctl/_default", m.root);
+    /* The device node stays root:root 0664, the usual default (0000 when
+     * we are not root); the child may enter the testbed (the preload
+     * makes its uevent socket there) and reach umockdev's ioctl sockets,
+     * which the preload connects to on every open of a /dev path. */
+    int prep = geteuid() == 0
+                   ? chown(m.root, NOBODY, NOBODY) | chmod(node, 0664) |
+                         chmod(sock, 0666) | chmod(dflt, 0666)
+                   : chmod(node, 0000);
+    int r = prep == 0 ? run_child("--child-diagnose", "2:3", 0, out,
+                                  sizeof out, &st)
+                      : -1;
+    mock_done(&m);
+    CHECK(prep == 0, "cannot set up the testbed modes: %s", strerror(errno));
+    CHECK(r == 0, "cannot start the child: %s", strerror(errno));
+    if (WIFEXITED(st) && WEXITSTATUS(st) == 3)
+        SKIP("cannot drop root privileges here");
+    CHECK(WIFEXITED(st) && WEXITSTATUS(st) == 0,
+          "child status 0x%x, output: %s", st, out);
+    /* The camera was still enumerated (sysfs is readable by anyone)... */
+    CHECK(strstr(out, "ok speed\tcamera SpeckCam U3") != NULL, "output: %s",
+          out);
+    /* ...but opening it was refused, with the fix spelled out. */
+    CHECK(strstr(out, "error access\tno permission to open "
+                 "/dev/bus/usb/002/003 (SpeckCam U3") != NULL,
+          "output: %s", out);
+    CHECK(strstr(out, "SUBSYSTEM==\"usb\", ATTR{idVendor}==\"1ab2\", "
+                 "ATTR{idProduct}==\"0001\", MODE=\"0660\", GROUP=\"plugdev\"")
+              != NULL, "no udev rule in: %s", out);
+    CHECK(strstr(out, USB_UDEV_RULES_FILE) &&
+              strstr(out, "udevadm control --reload-rules"),
+          "no rules file / reload command in: %s", out);
+}
+
+/* ---- hot-plug ---- */
+
+static void hotplug_case(tc *t, int rescan)
+{
+    mock m;
+    usb *u;
+    evlog l = {0};
+    SETUP(&m, &u, &CAM);
+    int r = rescan ? usb_hotplug_start_rescan(u, 0, log_event, &l)
+                   : usb_hotplug_start(u, log_event, &l);
+    int mode = usb_hotplug_mode(u);
+    int present = r == SL_OK && usb_poll(u, 0) == SL_OK &&
+                  count_events(&l, USB_EVENT_ARRIVED, CAM.vid) == 1;
+    int arrived = present && mock_add(&m, &DISK) == 0 &&
+                  wait_event(u, &l, USB_EVENT_ARRIVED, DISK.vid);
+    if (arrived)
+        mock_remove(&m, &CAM);
+    int left = arrived && wait_event(u, &l, USB_EVENT_LEFT, CAM.vid);
+    int i_left = 0;
+    for (int i = 0; i < l.n; i++)
+        if (l.e[i].kind == USB_EVENT_LEFT)
+            i_left = i;
+    usb_hotplug_stop(u);
+    teardown(&m, u);
+    CHECK(r == SL_OK, "hot-plug start failed");
+    if (!rescan && mode != USB_HOTPLUG_NATIVE)
+        SKIP("libusb has no hot-plug capability here");
+    CHECK(mode == (rescan ? USB_HOTPLUG_RESCAN : USB_HOTPLUG_NATIVE), "mode %d",
+          mode);
+    CHECK(present, "the camera present at start was not reported (%d events)",
+          l.n);
+    CHECK(arrived, "no arrival event for the added device within 5 s");
+    CHECK(left, "no removal event for the unplugged camera within 5 s");
+    /* Exactly these three events, and the removal carries what was known
+     * at arrival (sysfs is gone by then). */
+    CHECK(l.n == 3 && count_events(&l, USB_EVENT_LEFT, DISK.vid) == 0,
+          "%d events", l.n);
+    CHECK(l.e[i_left].d.bus == 2 && l.e[i_left].d.address == 3 &&
+              strcmp(l.e[i_left].d.product, "SpeckCam U3") == 0 &&
+              l.e[i_left].d.is_u3v,
+          "removal event: bus %d addr %d product \"%s\"", l.e[i_left].d.bus,
+          l.e[i_left].d.address, l.e[i_left].d.product);
+}
+
+TEST(hotplug_native) { hotplug_case(t, 0); }
+TEST(hotplug_rescan_fallback) { hotplug_case(t, 1); }
+
+/* ---- reset ---- */
+
+TEST(reset_reaches_device)
+{
+    mock m;
+    usb *u;
+    sl_err e1 = {0}, e2 = {0}, e3 = {0}, e4 = {0};
+    char last[64];
+    SETUP(&m, &u, &CAM);
+    int r1 = usb_reset(u, 2, 3, &e1);
+    int n1 = g_atomic_int_get(&m.n_reset);
+    g_mutex_lock(&m.lock);
+    g_strlcpy(last, m.last_reset, sizeof last);
+    g_mutex_unlock(&m.lock);
+    g_atomic_int_set(&m.reset_errno, EIO);    /* the reset itself fails */
+    int r2 = usb_reset(u, 2, 3, &e2);
+    g_atomic_int_set(&m.reset_errno, ENODEV); /* device re-enumerates */
+    int r3 = usb_reset(u, 2, 3, &e3);
+    int r4 = usb_reset(u, 9, 9, &e4);         /* nothing there */
+    int n4 = g_atomic_int_get(&m.n_reset);
+    int unknown = g_atomic_int_get(&m.n_unknown);
+    int same = strcmp(usb_errmsg(u), e4.msg) == 0;
+    teardown(&m, u);
+    CHECK(r1 == SL_OK && e1.msg[0] == '\0', "reset: %d %s", r1, e1.msg);
+    CHECK(n1 == 1 && strcmp(last, "/dev/bus/usb/002/003") == 0,
+          "mock saw %d resets, last on %s", n1, last);
+    CHECK(r2 == SL_EIO && strstr(e2.msg, "usb reset of SpeckCam U3") &&
+              strstr(e2.msg, "failed"), "%d %s", r2, e2.msg);
+    CHECK(r3 == SL_OK, "re-enumeration after reset is success: %s", e3.msg);
+    CHECK(r4 == SL_EINVAL && strstr(e4.msg, "no device at bus 9 address 9"),
+          "%d %s", r4, e4.msg);
+    CHECK(n4 == 3, "mock saw %d resets, want 3", n4);
+    CHECK(unknown == 0, "libusb sent %d ioctls the mock does not know",
+          unknown);
+    CHECK(same, "usb_errmsg differs from the sl_err");
+}
+
+/* ---- strings over control transfers ---- */
+
+/* No strings in sysfs: usb_list leaves them empty, usb_diagnose (which
+ * opens the device) fetches them as string descriptors through control
+ * URBs that the mock answers. */
+TEST(strings_from_descriptors)
+{
+    mock m;
+    usb *u;
+    fake_dev bare = CAM;
+    usb_dev_info d[4];
+    int n = 0;
+    bare.manufacturer = bare.product = bare.serial = NULL;
+    SETUP(&m, &u, &bare);
+    m.strings[0] = "Specklab"; /* before any open: no ioctl has run yet */
+    m.strings[1] = "SpeckCam U3";
+    m.strings[2] = "SC0042";
+    report *r = g_new0(report, 1);
+    int rl = usb_list(u, d, 4, &n);
+    usb_diagnose(u, 0, collect, r);
+    teardown(&m, u);
+    const item *sp = finding_of(r, USB_CHECK_SPEED, CAM.vid);
+    item it = sp ? *sp : (item){0};
+    g_free(r);
+    CHECK(rl == SL_OK && n == 1 && d[0].product[0] == '\0',
+          "sysfs has no strings, yet product \"%s\"", d[0].product);
+    CHECK(sp, "no speed finding for the camera");
+    CHECK(strcmp(it.dev.product, "SpeckCam U3") == 0 &&
+              strcmp(it.dev.manufacturer, "Specklab") == 0 &&
+              strcmp(it.dev.serial, "SC0042") == 0,
+          "strings \"%s\" \"%s\" \"%s\"", it.dev.manufacturer, it.dev.product,
+          it.dev.serial);
+    CHECK(strstr(it.f.text, "SpeckCam U3 (1ab2:0001, serial SC0042)") != NULL,
+          "text: %s", it.f.text);
+}
+
+/* Without a testbed: the real machine (here: no USB at all) must work. */
+TEST(no_testbed_real_system)
+{
+    usb *u = NULL;
+    usb_dev_info d[4];
+    int n = -1;
+    CHECK(getenv("UMOCKDEV_DIR") == NULL, "a testbed leaked from a test");
+    CHECK(usb_new(&u, NULL) == SL_OK, "usb_new failed");
+    int r = usb_list(u, d, 4, &n);
+    usb_free(u);
+    usb_free(NULL);
+    CHECK(r == SL_OK && n >= 0, "usb_list: %d", r);
+}
+
+/* Re-run this binary with the umockdev preload library (what
+ * umockdev-wrapper does).  A sanitized build must keep libasan first in
+ * the library list, so it is put in front when this process has it. */
+static void reexec_preloaded(char **argv)
+{
+    char line[1024], asan[1024] = "";
+    FILE *maps = fopen("/proc/self/maps", "r");
+    while (maps && !asan[0] && fgets(line, sizeof line, maps)) {
+        char *p = strchr(line, '/');
+        if (p && strstr(p, "/libasan.so")) {
+            p[strcspn(p, "\n")] = '\0';
+            g_strlcpy(asan, p, sizeof asan);
+        }
+    }
+    if (maps)
+        fclose(maps);
+    const char *old = getenv("LD_PRELOAD");
+    char *pre = g_strdup_printf("%s%s%s%s%s", asan, asan[0] ? ":" : "",
+                                PRELOAD_LIB, old && *old ? ":" : "",
+                                old ? old : "");
+    setenv("LD_PRELOAD", pre, 1);
+    g_free(pre);
+    execv("/proc/self/exe", argv);
+    fprintf(stderr, "test_usb: cannot re-exec under %s: %s\n", PRELOAD_LIB,
+            strerror(errno));
+}
+
+int main(int argc, char **argv)
+{
+    static const tc_case cases[] = {
+        TC_CASE(no_testbed_real_system),
+        TC_CASE(enumerate_identifies_u3v),
+        TC_CASE(link_speed),
+        TC_CASE(usbfs_memory_limit),
+        TC_CASE(sysfs_root_from_umockdev_dir),
+        TC_CASE(permission_denied_gives_udev_rule),
+        TC_CASE(hotplug_native),
+        TC_CASE(hotplug_rescan_fallback),
+        TC_CASE(reset_reaches_device),
+        TC_CASE(strings_from_descriptors),
+    };
+    if (argc == 3 && strcmp(argv[1], "--child-diagnose") == 0)
+        return child_diagnose(argv[2]);
+    if (argc == 3 && strcmp(argv[1], "--usbfs-child") == 0)
+        return child_usbfs();
+    /* Once only: if the preload still is not there, the tests skip. */
+    if (!preloaded() && !getenv("SPECKLAB_TEST_USB_REEXEC")) {
+        setenv("SPECKLAB_TEST_USB_REEXEC", "1", 1);
+        reexec_preloaded(argv); /* returns only on failure */
+    }
+    return tc_main(argv[0], argc, argv, cases,
+                   (int)(sizeof cases / sizeof cases[0]));
+}

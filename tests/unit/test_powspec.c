@@ -1,0 +1,329 @@
+/* test_powspec.c - the mean power spectrum against direct FFTs, its shift
+ * invariance, photon-bias removal on Poisson frames, the support mask and
+ * the reference-star transfer-function division. */
+#include <complex.h>
+#include <fftw3.h>
+
+#include "powspec.h"
+#include "rng.h"
+#include "tcheck.h"
+
+#include <stdlib.h>
+
+static int sf(int i, int n) { return i <= (n - 1) / 2 ? i : i - n; }
+
+/* Speckle frame generator: circular pupil of diameter n/2 (Nyquist),
+ * smoothed Gaussian random phase of rms `rms_rad`; object = point sources
+ * placed with exact Fourier phase ramps.  Frame = IFFT(O * OTF) scaled to
+ * `flux`; with `photons` the frame is g * Poisson(frame / g). */
+typedef struct gen {
+    int n;
+    fftw_complex *a, *b;
+    fftw_plan fa, ba, fb;
+} gen;
+
+static void gen_init(gen *g, int n)
+{
+    size_t N = (size_t)n * n;
+    g->n = n;
+    g->a = fftw_alloc_complex(N);
+    g->b = fftw_alloc_complex(N);
+    g->fa = fftw_plan_dft_2d(n, n, g->a, g->a, FFTW_FORWARD, FFTW_ESTIMATE);
+    g->ba = fftw_plan_dft_2d(n, n, g->a, g->a, FFTW_BACKWARD, FFTW_ESTIMATE);
+    g->fb = fftw_plan_dft_2d(n, n, g->b, g->b, FFTW_FORWARD, FFTW_ESTIMATE);
+}
+
+static void gen_done(gen *g)
+{
+    fftw_destroy_plan(g->fa);
+    fftw_destroy_plan(g->ba);
+    fftw_destroy_plan(g->fb);
+    fftw_free(g->a);
+    fftw_free(g->b);
+}
+
+static void gen_frame(gen *g, rng *r, double rms_rad, int np, const double *x,
+                      const double *y, const double *f, double flux,
+                      double gain, int photons, float *out)
+{
+    int n = g->n;
+    size_t N = (size_t)n * n;
+    /* Phase screen: white noise low-passed by a Gaussian of 1/e radius
+     * n/10 in frequency, then scaled to the wanted rms over the pupil. */
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double q = hypot(sf(i, n), sf(j, n)) / (n / 10.0);
+            g->b[(size_t)j * n + i] =
+                (rng_normal(r) + I * rng_normal(r)) * exp(-q * q);
+        }
+    fftw_execute(g->fb);
+    double s2 = 0;
+    int np_in = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++)
+            if (hypot(sf(i, n), sf(j, n)) < n / 4.0) {
+                s2 += creal(g->b[(size_t)j * n + i]) *
+                      creal(g->b[(size_t)j * n + i]);
+                np_in++;
+            }
+    double sc = rms_rad > 0 ? rms_rad / sqrt(s2 / np_in) : 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            size_t k = (size_t)j * n + i;
+            int in = hypot(sf(i, n), sf(j, n)) < n / 4.0;
+            g->a[k] = in ? cexp(I * sc * creal(g->b[k])) : 0;
+        }
+    fftw_execute(g->fa);
+    for (size_t k = 0; k < N; k++)
+        g->a[k] = creal(g->a[k] * conj(g->a[k]));
+    fftw_execute(g->fa);
+    double norm = 1.0 / creal(g->a[0]);
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double complex o = 0;
+            for (int s = 0; s < np; s++)
+                o += f[s] * cexp(-2.0 * M_PI * I *
+                                 (sf(i, n) * x[s] + sf(j, n) * y[s]) / n);
+            g->a[(size_t)j * n + i] *= o * norm;
+        }
+    fftw_execute(g->ba);
+    for (size_t k = 0; k < N; k++) {
+        double v = fmax(creal(g->a[k]) / N, 0.0) * flux;
+        out[k] = photons ? (float)(gain * rng_poisson(r, v / gain)) : (float)v;
+    }
+}
+
+TEST(single_frame_equals_fft)
+{
+    int n = 48;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 11, 0);
+    double x[2] = {20.3, 27.9}, y[2] = {22.2, 25.5}, f[2] = {1, 0.5};
+    float *fr = malloc(n * n * sizeof *fr);
+    double *ps = malloc(n * n * sizeof *ps);
+    gen_frame(&g, &r, 2.0, 2, x, y, f, 1000.0, 1, 0, fr);
+    powspec_opts o;
+    powspec_opts_default(&o);
+    o.measure = 0;
+    powspec *p = powspec_new(n, n, &o, NULL);
+    int rc = powspec_add(p, fr);
+    rc |= powspec_result(p, ps);
+    /* Independent double-precision full complex FFT. */
+    for (int k = 0; k < n * n; k++)
+        g.b[k] = fr[k];
+    fftw_execute(g.fb);
+    double worst = 0, peak = creal(g.b[0] * conj(g.b[0]));
+    for (int k = 0; k < n * n; k++) {
+        double d = fabs(ps[k] - creal(g.b[k] * conj(g.b[k])));
+        worst = d > worst ? d : worst;
+    }
+    double complex ft0;
+    double complex *ft = malloc(n * n * sizeof *ft);
+    powspec_mean_ft(p, ft);
+    ft0 = ft[5 * n + n - 3];
+    double complex want = g.b[5 * n + n - 3];
+    double flux = powspec_mean_flux(p);
+    powspec_free(p);
+    gen_done(&g);
+    free(fr);
+    free(ps);
+    free(ft);
+    CHECK(rc == SL_OK, "status %d", rc);
+    CHECK(worst < 1e-5 * peak, "max |diff| %g vs peak %g", worst, peak);
+    CHECK(cabs(ft0 - want) < 1e-4 * sqrt(peak), "mean ft %g%+gi vs %g%+gi",
+          creal(ft0), cimag(ft0), creal(want), cimag(want));
+    CHECK_NEAR(flux, 1500.0, 1e-2); /* object flux 1 + 0.5 */
+}
+
+TEST(shift_invariant)
+{
+    int n = 40;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 12, 0);
+    double x = 17.4, y = 21.1, f = 1;
+    float *a = malloc(n * n * sizeof *a), *b = malloc(n * n * sizeof *b);
+    double *pa = malloc(n * n * sizeof *pa), *pb = malloc(n * n * sizeof *pb);
+    gen_frame(&g, &r, 3.0, 1, &x, &y, &f, 500.0, 1, 0, a);
+    for (int j = 0; j < n; j++) /* circular shift by (5, -3) */
+        for (int i = 0; i < n; i++)
+            b[((j - 3 + n) % n) * n + (i + 5) % n] = a[j * n + i];
+    powspec *p = powspec_new(n, n, NULL, NULL), *q = powspec_new(n, n, NULL, NULL);
+    powspec_add(p, a);
+    powspec_add(q, b);
+    powspec_result(p, pa);
+    powspec_result(q, pb);
+    double worst = 0;
+    for (int k = 0; k < n * n; k++)
+        worst = fmax(worst, fabs(pa[k] - pb[k]));
+    double peak = pa[0];
+    powspec_free(p);
+    powspec_free(q);
+    gen_done(&g);
+    free(a);
+    free(b);
+    free(pa);
+    free(pb);
+    CHECK(worst < 1e-5 * peak, "max |diff| %g, peak %g", worst, peak);
+}
+
+TEST(window_shapes)
+{
+    int n = 32;
+    float *a = malloc(n * n * sizeof *a), *b = malloc(n * n * sizeof *b);
+    int rc = powspec_window(POWSPEC_WIN_TUKEY, 1.0, n, n, a);
+    rc |= powspec_window(POWSPEC_WIN_HANN, 0.0, n, n, b);
+    double d = 0;
+    for (int k = 0; k < n * n; k++)
+        d = fmax(d, fabs(a[k] - b[k]));
+    CHECK(rc == SL_OK && d < 1e-7, "tukey(1) vs hann: %g", d);
+    CHECK_NEAR(b[0], 0.0, 1e-7);
+    CHECK_NEAR(b[(n / 2) * n + n / 2], 1.0, 1e-7);
+    CHECK_NEAR(b[3 * n + 5], b[(n - 3) * n + n - 5], 1e-7);
+    powspec_window(POWSPEC_WIN_TUKEY, 0.0, n, n, a);
+    for (int k = 0; k < n * n; k++)
+        CHECK(a[k] == 1.0f, "tukey(0) pixel %d = %g", k, a[k]);
+    powspec_window(POWSPEC_WIN_TUKEY, 0.5, n, n, a);
+    CHECK(a[(n / 2) * n + n / 4 + 1] == 1.0f && a[n * 2 + 2] < 0.5f,
+          "tukey(0.5) flat middle, tapered edge");
+    CHECK(powspec_window(7, 0, n, n, a) == SL_EINVAL, "bad kind accepted");
+    free(a);
+    free(b);
+}
+
+/* Poisson frames (gain 2.5 ADU/photon, ~2000 photons/frame): the raw power
+ * spectrum beyond the pupil cut-off sits at g * flux; after photon-bias
+ * removal it averages to zero within its standard error, and the floor
+ * estimate agrees with the photon bias.  The support mask stays inside the
+ * pupil's cut-off and covers the low frequencies. */
+TEST(photon_bias_removed)
+{
+    int n = 64, nfr = 40;
+    double gain = 2.5, flux = 2000 * gain;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 13, 0);
+    double x[2] = {30.2, 36.0}, y[2] = {31.7, 29.0}, f[2] = {1, 0.6};
+    float *fr = malloc(n * n * sizeof *fr);
+    double *ps = malloc(n * n * sizeof *ps), *pf = malloc(n * n * sizeof *pf);
+    unsigned char *mask = malloc(n * n);
+    powspec_opts o;
+    powspec_opts_default(&o);
+    o.bias = POWSPEC_BIAS_PHOTON;
+    o.adu_per_photon = gain;
+    o.measure = 0;
+    powspec *p = powspec_new(n, n, &o, NULL);
+    o.bias = POWSPEC_BIAS_FLOOR;
+    powspec *q = powspec_new(n, n, &o, NULL);
+    for (int k = 0; k < nfr; k++) {
+        gen_frame(&g, &r, 2.5, 2, x, y, f, flux, gain, 1, fr);
+        powspec_add(p, fr);
+        powspec_add(q, fr);
+    }
+    powspec_result(p, ps);
+    powspec_result(q, pf);
+    double bias = powspec_bias(p), bfloor = powspec_bias(q);
+    double mflux = powspec_mean_flux(p);
+    double s = 0, s2 = 0;
+    int m = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++)
+            if (hypot(sf(i, n), sf(j, n)) > n / 2.0 + 1) {
+                double v = ps[j * n + i];
+                s += v;
+                s2 += v * v;
+                m++;
+            }
+    double mean = s / m, se = sqrt((s2 / m - mean * mean) / m);
+    double rcut = 0;
+    int rc = powspec_support(ps, n, n, 5.0, 1e-6, 1.0, mask, &rcut);
+    int outside = 0, lowmiss = 0, nlow = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double rr = hypot(sf(i, n), sf(j, n));
+            outside += mask[j * n + i] && rr > n / 2.0 + 1;
+            lowmiss += !mask[j * n + i] && rr < n / 8.0;
+            nlow += rr < n / 8.0;
+        }
+    powspec_free(p);
+    powspec_free(q);
+    gen_done(&g);
+    free(fr);
+    free(ps);
+    free(pf);
+    free(mask);
+    CHECK_NEAR(bias, gain * mflux, 1e-6 * bias);
+    CHECK(fabs(bfloor / bias - 1) < 0.05, "floor %g vs photon bias %g",
+          bfloor, bias);
+    CHECK(fabs(mean) < 4 * se + 1e-3 * bias,
+          "corrected floor mean %g, se %g (bias %g)", mean, se, bias);
+    /* Fringe minima of the binary can fall below 5 sigma: most, not all,
+     * of the low frequencies must be in. */
+    CHECK(rc == SL_OK && outside == 0 && lowmiss < nlow / 10,
+          "support: %d outside the pupil cut-off, %d of %d missed low",
+          outside, lowmiss, nlow);
+    CHECK(rcut <= n / 2.0 + 1 && rcut > n / 8.0, "rcut %g", rcut);
+}
+
+/* With a point-source reference the speckle transfer function divides
+ * out: the binary's normalised modulus |cos| pattern is recovered far
+ * better than by sqrt(PS) alone. */
+TEST(reference_division)
+{
+    int n = 64, nfr = 60;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 14, 0);
+    double x[2] = {30.0, 37.3}, y[2] = {32.0, 35.1}, f[2] = {1, 0.5};
+    double x0 = 32, y0 = 32, f0 = 1;
+    float *fr = malloc(n * n * sizeof *fr);
+    double *po = malloc(n * n * sizeof *po), *pr = malloc(n * n * sizeof *pr);
+    double *m1 = malloc(n * n * sizeof *m1), *m0 = malloc(n * n * sizeof *m0);
+    powspec *p = powspec_new(n, n, NULL, NULL), *q = powspec_new(n, n, NULL, NULL);
+    for (int k = 0; k < nfr; k++) {
+        gen_frame(&g, &r, 2.5, 2, x, y, f, 1.0, 1, 0, fr);
+        powspec_add(p, fr);
+        gen_frame(&g, &r, 2.5, 1, &x0, &y0, &f0, 1.0, 1, 0, fr);
+        powspec_add(q, fr);
+    }
+    powspec_result(p, po);
+    powspec_result(q, pr);
+    int rc = powspec_modulus(po, pr, n, n, 1e-3, m1);
+    rc |= powspec_modulus(po, NULL, n, n, 0, m0);
+    double e1 = 0, e0 = 0;
+    int m = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            if (hypot(sf(i, n), sf(j, n)) > n / 6.0)
+                continue;
+            double ph = 2 * M_PI * (sf(i, n) * (x[1] - x[0]) +
+                                    sf(j, n) * (y[1] - y[0])) / n;
+            double truth = cabs(1 + 0.5 * cexp(I * ph)) / 1.5;
+            e1 += fabs(m1[j * n + i] / m1[0] - truth);
+            e0 += fabs(m0[j * n + i] / m0[0] - truth);
+            m++;
+        }
+    e1 /= m;
+    e0 /= m;
+    powspec_free(p);
+    powspec_free(q);
+    gen_done(&g);
+    free(fr);
+    free(po);
+    free(pr);
+    free(m1);
+    free(m0);
+    CHECK(rc == SL_OK, "status %d", rc);
+    CHECK(e1 < 0.08, "mean |error| with reference %g", e1);
+    CHECK(e0 > 2 * e1, "no-reference error %g should be worse than %g", e0,
+          e1);
+}
+
+TC_MAIN(TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant),
+        TC_CASE(window_shapes), TC_CASE(photon_bias_removed),
+        TC_CASE(reference_division))

@@ -12,6 +12,9 @@ typedef struct command {
 
 static const command commands[] = {
     {"sim", cmd_sim, "simulate a speckle cube (scene, mask, turbulence, detector)"},
+    {"recon", cmd_recon, "reconstruct a FITS sequence (direct bispectrum or TSM)"},
+    {"compare", cmd_compare, "correlation coefficient c of two images"},
+    {"binary", cmd_binary, "separation, position angle and dm of a binary image"},
     {"mask", cmd_mask, "generate or show an aperture mask"},
     {"stage", cmd_stage, "home, move, stop or reset the stage wheels, or show their status"},
 };

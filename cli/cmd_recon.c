@@ -1,0 +1,318 @@
+/* cmd_recon.c - `specklab recon`, `specklab compare`, `specklab binary`:
+ * reconstruct a FITS sequence, compare two images, measure a binary. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "cube.h"
+#include "metrics.h"
+#include "pipeline.h"
+#include "powspec.h"
+#include "preview.h"
+
+typedef struct recon_args {
+    char *method, *out, *png, *ref, *target, *window, *stretch;
+    int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine;
+    double photons, gain_adu_per_photon, saturation, wiener;
+} recon_args;
+
+static void json_num(JsonBuilder *b, const char *k, double v)
+{
+    json_builder_set_member_name(b, k);
+    if (isfinite(v))
+        json_builder_add_double_value(b, v);
+    else
+        json_builder_add_null_value(b);
+}
+
+static void json_str(JsonBuilder *b, const char *k, const char *v)
+{
+    json_builder_set_member_name(b, k);
+    json_builder_add_string_value(b, v);
+}
+
+static void recon_report(const recon_args *a, const pipeline_opts *o,
+                         const pipeline_result *r, const char *input)
+{
+    if (a->json) {
+        JsonBuilder *b = json_builder_new();
+        json_builder_begin_object(b);
+        json_str(b, "input", input);
+        json_str(b, "output", a->out);
+        json_str(b, "method", pipeline_method_name(o->method));
+        json_builder_set_member_name(b, "parameters");
+        json_builder_begin_object(b);
+        double v;
+        static const char *keys[] = {"RECNANG", "RECR2", "RECRCUT", "RECNTRI",
+                                     "RECNPAIR", "RECPHOT", "RECGAIN"};
+        for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
+            if (cube_meta_get_num(&r->meta, keys[i], &v) == SL_OK)
+                json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
+        json_str(b, "reference", o->ref_path ? o->ref_path : "none");
+        json_builder_end_object(b);
+        json_builder_set_member_name(b, "frames");
+        json_builder_add_int_value(b, r->nframes);
+        json_builder_set_member_name(b, "width");
+        json_builder_add_int_value(b, r->width);
+        json_builder_set_member_name(b, "height");
+        json_builder_add_int_value(b, r->height);
+        json_num(b, "plate_scale_arcsec", r->plate_scale_arcsec);
+        json_num(b, "elapsed_s", r->elapsed_s);
+        json_num(b, "peak_rss_mb", cli_peak_rss_mb());
+        json_builder_end_object(b);
+        cli_print_json(b);
+        g_object_unref(b);
+    } else if (!a->quiet) {
+        printf("%s: %s of %d frames (%dx%d) -> %s in %.3f s, peak %.0f MB\n",
+               input, pipeline_method_name(o->method), r->nframes, r->width,
+               r->height, a->out, r->elapsed_s, cli_peak_rss_mb());
+    }
+}
+
+static int recon_run(recon_args *a, char **inputs, int ninputs)
+{
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    if (a->method && pipeline_method_parse(a->method, &o.method) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --method '%s' (direct, tsm, "
+                        "tsm-fourier)\n", a->method);
+        return 2;
+    }
+    if (a->window) {
+        if (!strcmp(a->window, "none")) o.window = POWSPEC_WIN_NONE;
+        else if (!strcmp(a->window, "hann")) o.window = POWSPEC_WIN_HANN;
+        else if (!strcmp(a->window, "tukey")) o.window = POWSPEC_WIN_TUKEY;
+        else {
+            fprintf(stderr, "specklab recon: unknown --window '%s' (none, hann, tukey)\n", a->window);
+            return 2;
+        }
+    }
+    preview_stretch stretch = PREVIEW_SQRT;
+    if (a->stretch && preview_stretch_parse(a->stretch, &stretch) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
+        return 2;
+    }
+    o.nangles = a->projections;
+    o.r2_px = a->r2;
+    o.prep = !a->no_prep;
+    o.learn_badpix = a->learn_badpix;
+    o.saturation_adu = a->saturation;
+    o.photons_per_frame = a->photons;
+    o.adu_per_photon = a->gain_adu_per_photon;
+    o.ref_path = a->ref;
+    o.target_path = a->target;
+    o.wiener = a->wiener;
+    o.nthreads = a->threads;
+    o.refine_iters = a->refine;
+    pipeline_result r;
+    sl_err e = {0};
+    if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
+        fprintf(stderr, "specklab recon: %s\n", e.msg);
+        return 1;
+    }
+    seq img = {r.width, r.height, 1, r.image};
+    int status = 0;
+    if (cube_write(a->out, &img, &r.meta, &e) != SL_OK ||
+        (a->png && preview_write_png(a->png, r.image, r.width, r.height,
+                                     stretch, &e) != SL_OK)) {
+        fprintf(stderr, "specklab recon: %s\n", e.msg);
+        status = 1;
+    } else {
+        recon_report(a, &o, &r, inputs[0]);
+    }
+    pipeline_result_clear(&r);
+    return status;
+}
+
+int cmd_recon(int argc, char **argv)
+{
+    recon_args a = {0};
+    GOptionEntry entries[] = {
+        {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier (default tsm)", "M"},
+        {"projections", 'p', 0, G_OPTION_ARG_INT, &a.projections, "TSM projection angles (default 180)", "N"},
+        {"r2", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size)", "PX"},
+        {"ref", 0, 0, G_OPTION_ARG_FILENAME, &a.ref, "point-source reference sequence (transfer-function calibration)", "FITS"},
+        {"target", 0, 0, G_OPTION_ARG_FILENAME, &a.target, "with --ref: PSF wanted in the result (e.g. cophased)", "FITS"},
+        {"wiener", 0, 0, G_OPTION_ARG_DOUBLE, &a.wiener, "reference regulariser (default 1e-3 direct, 0.05 TSM)", "X"},
+        {"photons", 0, 0, G_OPTION_ARG_DOUBLE, &a.photons, "mean photons per frame (default: header SIMPHOT; <0: not photon data)", "N"},
+        {"adu-per-photon", 0, 0, G_OPTION_ARG_DOUBLE, &a.gain_adu_per_photon, "detector gain in ADU per photon (default: header)", "G"},
+        {"window", 0, 0, G_OPTION_ARG_STRING, &a.window, "direct: frame apodisation none|hann|tukey (default tukey)", "W"},
+        {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation, "repair raw pixels at or above this", "ADU"},
+        {"no-prep", 0, 0, G_OPTION_ARG_NONE, &a.no_prep, "do not clean frames (sky, NaN, saturation)", NULL},
+        {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn hot/dead pixels from the sequence first", NULL},
+        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "direct: bispectrum threads (default 2)", "N"},
+        {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default 0)", "N"},
+        {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
+        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
+        {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
+        {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print one JSON object", NULL},
+        {"quiet", 'q', 0, G_OPTION_ARG_NONE, &a.quiet, "print nothing on success", NULL},
+        {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    GOptionContext *ctx = g_option_context_new("CUBE.fits|FRAME.fits...|'GLOB' - reconstruct a speckle sequence");
+    g_option_context_add_main_entries(ctx, entries, NULL);
+    g_option_context_set_description(ctx,
+        "Input: a FITS cube (NAXIS3 = frames), or 2-D frames read as one sequence.\n"
+        "Output: a 2-D float32 image, frame-sized, object centred; the plate scale\n"
+        "is carried over from the input header (PLTSCALE).");
+    int status = 2;
+    if (!cli_parse(ctx, &argc, &argv))
+        goto free_ctx;
+    if (argc < 2 || !a.out) {
+        fprintf(stderr, "specklab recon: need an input sequence and -o FILE (try --help)\n");
+        goto free_ctx;
+    }
+    status = recon_run(&a, argv + 1, argc - 1);
+free_ctx:
+    g_option_context_free(ctx);
+    g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
+    g_free(a.target); g_free(a.window); g_free(a.stretch);
+    return status;
+}
+
+/* Read a 2-D image from the primary HDU, or from extension ext (a separate
+ * option rather than FILE[EXT] syntax, so any path stays a path). */
+static int read_image(const char *path, const char *ext, seq **out, sl_err *e)
+{
+    if (ext)
+        return cube_read_ext(out, path, ext, e);
+    const char *paths[] = {path};
+    int rc = cube_read(out, NULL, paths, 1, 0, e);
+    if (rc == SL_OK && (*out)->nframes != 1) {
+        rc = sl_seterr(e, SL_EFORMAT, "%s has %d frames: expected a 2-D image "
+                       "(reconstruct it first)", path, (*out)->nframes);
+        seq_free(*out);
+        *out = NULL;
+    }
+    return rc;
+}
+
+int cmd_compare(int argc, char **argv)
+{
+    char *ext_a = NULL, *ext_b = NULL;
+    int json = 0, status = 2;
+    seq *a = NULL, *b = NULL;
+    GOptionEntry entries[] = {
+        {"ext-a", 0, 0, G_OPTION_ARG_STRING, &ext_a, "read A from this image extension (e.g. COPHASED)", "EXT"},
+        {"ext-b", 0, 0, G_OPTION_ARG_STRING, &ext_b, "read B from this image extension", "EXT"},
+        {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
+        {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    GOptionContext *ctx = g_option_context_new("A.fits B.fits - correlation coefficient c after sub-pixel registration");
+    g_option_context_add_main_entries(ctx, entries, NULL);
+    if (!cli_parse(ctx, &argc, &argv))
+        goto free_ctx;
+    if (argc != 3) {
+        fprintf(stderr, "specklab compare: need two images A.fits B.fits\n");
+        goto free_ctx;
+    }
+    status = 1;
+    sl_err e = {0};
+    if (read_image(argv[1], ext_a, &a, &e) != SL_OK || read_image(argv[2], ext_b, &b, &e) != SL_OK) {
+        fprintf(stderr, "specklab compare: %s\n", e.msg);
+        goto free_imgs;
+    }
+    if (a->width != b->width || a->height != b->height) {
+        fprintf(stderr, "specklab compare: %s is %dx%d but %s is %dx%d\n", argv[1],
+                a->width, a->height, argv[2], b->width, b->height);
+        goto free_imgs;
+    }
+    double c = NAN, dx = 0, dy = 0;
+    if (metrics_corr_registered(a->data, b->data, a->width, a->height, &c, &dx, &dy) != SL_OK) {
+        fprintf(stderr, "specklab compare: registration failed\n");
+        goto free_imgs;
+    }
+    if (json) {
+        JsonBuilder *jb = json_builder_new();
+        json_builder_begin_object(jb);
+        json_num(jb, "c", c);
+        json_num(jb, "c_unregistered", metrics_corr(a->data, b->data, a->width, a->height));
+        json_num(jb, "shift_x_px", dx);
+        json_num(jb, "shift_y_px", dy);
+        json_builder_end_object(jb);
+        cli_print_json(jb);
+        g_object_unref(jb);
+    } else {
+        printf("c = %.4f (B shifted by %+.3f, %+.3f px onto A)\n", c, dx, dy);
+    }
+    status = 0;
+free_imgs:
+    seq_free(a);
+    seq_free(b);
+free_ctx:
+    g_option_context_free(ctx);
+    g_free(ext_a);
+    g_free(ext_b);
+    return status;
+}
+
+int cmd_binary(int argc, char **argv)
+{
+    char *ext = NULL;
+    int json = 0, status = 2;
+    seq *img = NULL;
+    cube_meta m;
+    GOptionEntry entries[] = {
+        {"ext", 0, 0, G_OPTION_ARG_STRING, &ext, "read the image from this extension", "EXT"},
+        {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
+        {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    GOptionContext *ctx = g_option_context_new("IMAGE.fits - separation, position angle and dm of a binary");
+    g_option_context_add_main_entries(ctx, entries, NULL);
+    g_option_context_set_description(ctx, "PA is measured from +y (north) towards -x (east), fainter relative to brighter.");
+    if (!cli_parse(ctx, &argc, &argv))
+        goto free_ctx;
+    if (argc != 2) {
+        fprintf(stderr, "specklab binary: need one image\n");
+        goto free_ctx;
+    }
+    status = 1;
+    sl_err e = {0};
+    const char *paths[] = {argv[1]};
+    int rc = ext ? cube_read_ext(&img, argv[1], ext, &e) : cube_read(&img, &m, paths, 1, 0, &e);
+    if (rc == SL_OK && ext) {
+        cube_reader *r = NULL;
+        cube_meta_init(&m);
+        if (cube_reader_open(&r, paths, 1, 0, &e) == SL_OK)
+            m = *cube_reader_meta(r);
+        cube_reader_free(r);
+    }
+    if (rc != SL_OK || img->nframes != 1) {
+        fprintf(stderr, "specklab binary: %s\n", rc != SL_OK ? e.msg : "expected a 2-D image");
+        goto free_img;
+    }
+    binary_result b;
+    if (metrics_binary(img->data, img->width, img->height, &b) != SL_OK) {
+        fprintf(stderr, "specklab binary: no second component found in %s\n", argv[1]);
+        goto free_img;
+    }
+    double ps = m.plate_scale_arcsec;
+    if (json) {
+        JsonBuilder *jb = json_builder_new();
+        json_builder_begin_object(jb);
+        json_num(jb, "sep_px", b.sep_px);
+        json_num(jb, "sep_err_px", b.sep_err_px);
+        json_num(jb, "pa_deg", b.pa_deg);
+        json_num(jb, "pa_err_deg", b.pa_err_deg);
+        json_num(jb, "dm_mag", b.dm_mag);
+        json_num(jb, "dm_err_mag", b.dm_err_mag);
+        json_num(jb, "flux_ratio", b.flux_ratio);
+        json_num(jb, "sep_arcsec", b.sep_px * ps);
+        json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
+        json_builder_end_object(jb);
+        cli_print_json(jb);
+        g_object_unref(jb);
+    } else {
+        printf("sep %.3f +- %.3f px", b.sep_px, b.sep_err_px);
+        if (isfinite(ps))
+            printf(" (%.4f +- %.4f arcsec)", b.sep_px * ps, b.sep_err_px * ps);
+        printf(", PA %.2f +- %.2f deg, dm %.3f +- %.3f mag\n", b.pa_deg,
+               b.pa_err_deg, b.dm_mag, b.dm_err_mag);
+    }
+    status = 0;
+free_img:
+    seq_free(img);
+free_ctx:
+    g_option_context_free(ctx);
+    g_free(ext);
+    return status;
+}

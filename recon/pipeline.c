@@ -1,0 +1,449 @@
+/* pipeline.c - see pipeline.h. */
+#include "pipeline.h"
+
+#include <complex.h>
+#include <fftw3.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "bispec.h"
+#include "powspec.h"
+#include "prep.h"
+#include "tsm.h"
+
+typedef int (*add_fn)(void *h, const float *frame);
+
+/* One input sequence being streamed: reader, cleaning, frame buffer. */
+typedef struct stream {
+    cube_reader *rd;
+    prep *pp;
+    float *frame;
+    int w, h, n;
+} stream;
+
+static const char *method_names[] = {"direct", "tsm", "tsm-fourier"};
+
+void pipeline_opts_defaults(pipeline_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->method = PIPE_TSM;
+    o->window = POWSPEC_WIN_TUKEY;
+    o->tukey_alpha = 0.25;
+    o->prep = 1;
+    o->fftw_measure = 1;
+}
+
+int pipeline_method_parse(const char *name, int *method)
+{
+    for (int i = 0; i < 3; i++)
+        if (strcmp(name, method_names[i]) == 0) {
+            *method = i;
+            return SL_OK;
+        }
+    return SL_EINVAL;
+}
+
+const char *pipeline_method_name(int method)
+{
+    return method >= 0 && method < 3 ? method_names[method] : "unknown";
+}
+
+void pipeline_result_clear(pipeline_result *r)
+{
+    if (!r)
+        return;
+    free(r->image);
+    r->image = NULL;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static void stream_close(stream *s)
+{
+    cube_reader_free(s->rd);
+    prep_free(s->pp);
+    free(s->frame);
+    memset(s, 0, sizeof *s);
+}
+
+/* Open a sequence for streaming, with frame cleaning as the options say
+ * (the estimators apodise themselves, so prep never windows). */
+static int stream_open(stream *s, const char *const *paths, int npaths,
+                       const pipeline_opts *o, sl_err *err)
+{
+    memset(s, 0, sizeof *s);
+    int rc = cube_reader_open(&s->rd, paths, npaths,
+                              o->prep ? CUBE_ALLOW_NONFINITE : 0, err);
+    if (rc != SL_OK)
+        return rc;
+    s->w = cube_reader_width(s->rd);
+    s->h = cube_reader_height(s->rd);
+    s->n = cube_reader_nframes(s->rd);
+    s->frame = malloc(sizeof(float) * s->w * s->h);
+    if (!s->frame) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for a %dx%d frame",
+                       s->w, s->h);
+        goto close_stream;
+    }
+    if (o->prep) {
+        prep_opts po;
+        prep_opts_defaults(&po);
+        po.window = PREP_WIN_NONE;
+        po.saturation_adu = o->saturation_adu;
+        if ((rc = prep_new(&s->pp, s->w, s->h, &po, err)) != SL_OK)
+            goto close_stream;
+    }
+    return SL_OK;
+close_stream:
+    stream_close(s);
+    return rc;
+}
+
+/* Feed every (cleaned) frame of s to add(h, frame).  Cost: one read and
+ * one prep per frame; allocation-free. */
+static int stream_feed(stream *s, add_fn add, void *h, const char *what,
+                       sl_err *err)
+{
+    cube_reader_rewind(s->rd);
+    int rc, k = 0;
+    while ((rc = cube_reader_next(s->rd, s->frame)) == SL_OK) {
+        if (s->pp)
+            prep_frame(s->pp, s->frame, NULL);
+        if (add && (rc = add(h, s->frame)) != SL_OK)
+            return sl_seterr(err, rc, "frame %d: %s", k, what);
+        k++;
+    }
+    if (rc != SL_EEND)
+        return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+    return SL_OK;
+}
+
+static int learn_add(void *h, const float *f) { return prep_learn(h, f); }
+static int ps_add(void *h, const float *f) { return powspec_add(h, f); }
+static int bs_add(void *h, const float *f) { return bispec_add(h, f); }
+static int tsm_add_fn(void *h, const float *f) { return tsm_add(h, f); }
+
+/* Learning needs raw frames: read without prep, then finish the map. */
+static int learn_badpix(stream *s, sl_err *err)
+{
+    prep *pp = s->pp;
+    s->pp = NULL;
+    int rc = stream_feed(s, learn_add, pp, "learning bad pixels", err);
+    s->pp = pp;
+    if (rc == SL_OK && prep_learn_finish(pp) < 0)
+        rc = sl_seterr(err, SL_ENOMEM, "%s", prep_errmsg(pp));
+    return rc;
+}
+
+/* Photon statistics: the caller's, else the simulator's header. */
+static void photon_params(const pipeline_opts *o, const cube_meta *m,
+                          double *photons, double *g)
+{
+    double sp = 0, sg = 0;
+    *photons = o->photons_per_frame;
+    *g = o->adu_per_photon;
+    if (*photons == 0 && cube_meta_get_num(m, "SIMPHOT", &sp) == SL_OK)
+        *photons = sp;
+    if (*photons > 0 && !(*g > 0) &&
+        cube_meta_get_num(m, "SIMGAIN", &sg) == SL_OK && sg > 0)
+        *g = 1.0 / sg; /* SIMGAIN is e-/ADU; one photon = one e- */
+    if (*photons < 0)
+        *photons = 0;
+    if (!(*photons > 0) && o->photons_per_frame <= 0)
+        *g = 0;
+}
+
+/* The power spectrum of a whole sequence (pass 1 of direct, and the
+ * reference).  When the gain is unknown but photons are, g comes from the
+ * mean flux of this very pass. */
+static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
+                            double photons, double *ps, double *g_out,
+                            sl_err *err)
+{
+    powspec_opts po;
+    powspec_opts_default(&po);
+    po.window = o->window;
+    po.tukey_alpha = o->tukey_alpha;
+    po.measure = o->fftw_measure;
+    po.bias = g > 0 ? POWSPEC_BIAS_PHOTON : POWSPEC_BIAS_FLOOR;
+    po.adu_per_photon = g;
+    powspec *p = powspec_new(s->w, s->h, &po, err);
+    if (!p)
+        return err ? err->code : SL_ENOMEM;
+    int rc = stream_feed(s, ps_add, p, "power spectrum", err);
+    if (rc == SL_OK && !(g > 0) && photons > 0) {
+        /* Gain from the data, for the bispectrum's Wirnitzer terms; in
+         * this pass the floor estimate stands for the photon bias. */
+        g = powspec_mean_flux(p) / photons;
+    }
+    if (rc == SL_OK && (rc = powspec_result(p, ps)) != SL_OK)
+        sl_seterr(err, rc, "%s", powspec_errmsg(p));
+    if (g_out)
+        *g_out = g;
+    powspec_free(p);
+    return rc;
+}
+
+/* |FFT(target PSF)| normalised to 1 at DC, w*h FFT order. */
+static int target_mtf(const char *path, int w, int h, double *mtf,
+                      sl_err *err)
+{
+    seq *t = NULL;
+    const char *paths[] = {path};
+    int rc = cube_read(&t, NULL, paths, 1, 0, err);
+    if (rc != SL_OK)
+        return rc;
+    if (t->width != w || t->height != h) {
+        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d, frames are "
+                       "%dx%d", path, t->width, t->height, w, h);
+        seq_free(t);
+        return rc;
+    }
+    fftw_complex *in = fftw_alloc_complex((size_t)w * h);
+    fftw_plan p = fftw_plan_dft_2d(h, w, in, in, FFTW_FORWARD, FFTW_ESTIMATE);
+    for (size_t i = 0; i < (size_t)w * h; i++)
+        in[i] = t->data[i];
+    fftw_execute(p);
+    double dc = cabs(in[0]);
+    for (size_t i = 0; i < (size_t)w * h; i++)
+        mtf[i] = dc > 0 ? cabs(in[i]) / dc : 0;
+    fftw_destroy_plan(p);
+    fftw_free(in);
+    seq_free(t);
+    return SL_OK;
+}
+
+static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
+                      double photons, double g, float *img, cube_meta *m,
+                      sl_err *err)
+{
+    size_t n = (size_t)s->w * s->h;
+    double *ps = malloc(n * sizeof *ps), *ps_ref = NULL, *mod = NULL;
+    unsigned char *support = malloc(n);
+    bispec *b = NULL;
+    int rc = SL_ENOMEM;
+    if (!ps || !support) {
+        sl_seterr(err, rc, "out of memory");
+        goto free_all;
+    }
+    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, err)) != SL_OK)
+        goto free_all;
+    double rcut = 0;
+    powspec_support(ps, s->w, s->h, 5, 1e-6, 1.0, support, &rcut);
+    bispec_opts bo;
+    bispec_opts_default(&bo);
+    int side = s->w < s->h ? s->w : s->h;
+    bo.r2_px = o->r2_px > 0 ? o->r2_px : (int)lround(0.14 * side);
+    if (bo.r2_px > BISPEC_R2_MAX)
+        bo.r2_px = BISPEC_R2_MAX;
+    if (bo.r2_px < 1)
+        bo.r2_px = 1;
+    bo.support = support;
+    bo.window = o->window;
+    bo.tukey_alpha = o->tukey_alpha;
+    bo.adu_per_photon = g;
+    bo.nthreads = o->nthreads > 0 ? o->nthreads : 2;
+    bo.measure = o->fftw_measure;
+    bo.refine_iters = o->refine_iters;
+    if (!(b = bispec_new(s->w, s->h, &bo, err))) {
+        rc = err ? err->code : SL_ENOMEM;
+        goto free_all;
+    }
+    if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK)
+        goto free_all;
+    if (ref) {
+        ps_ref = malloc(n * sizeof *ps_ref);
+        mod = malloc(n * sizeof *mod);
+        double gr = 0, pr = 0;
+        photon_params(o, cube_reader_meta(ref->rd), &pr, &gr);
+        rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
+                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, err);
+        if (rc != SL_OK)
+            goto free_all;
+        powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);
+        if (o->target_path) {
+            if ((rc = target_mtf(o->target_path, s->w, s->h, ps_ref, err)) != SL_OK)
+                goto free_all;
+            for (size_t i = 0; i < n; i++)
+                mod[i] *= ps_ref[i];
+        }
+    }
+    if ((rc = bispec_image(b, mod, img)) != SL_OK) {
+        sl_seterr(err, rc, "%s", bispec_errmsg(b));
+        goto free_all;
+    }
+    cube_meta_set_num(m, "RECR2", bo.r2_px, "[px] bispectrum |u2| radius");
+    cube_meta_set_num(m, "RECRCUT", rcut, "[px] measured Fourier cut-off");
+    cube_meta_set_num(m, "RECNTRI", (double)bispec_ntriples(b), "closure triangles stored");
+    cube_meta_set_num(m, "RECGAIN", g, "[adu/photon] photon-bias gain, 0 = floor");
+free_all:
+    bispec_free(b);
+    free(ps);
+    free(ps_ref);
+    free(mod);
+    free(support);
+    return rc;
+}
+
+static int tsm_sequence(stream *s, const tsm_opts *to, tsm **out, sl_err *err)
+{
+    tsm *t = tsm_new(s->w, s->h, to, err);
+    if (!t)
+        return err ? err->code : SL_ENOMEM;
+    int rc = stream_feed(s, tsm_add_fn, t, "projections", err);
+    if (rc != SL_OK) {
+        tsm_free(t);
+        return rc;
+    }
+    *out = t;
+    return SL_OK;
+}
+
+/* TSM power of a single image (the target PSF) through the same geometry. */
+static int tsm_target_power(const char *path, const tsm_opts *to, int w,
+                            int h, double *ps, sl_err *err)
+{
+    seq *img = NULL;
+    const char *paths[] = {path};
+    int rc = cube_read(&img, NULL, paths, 1, 0, err);
+    if (rc != SL_OK)
+        return rc;
+    tsm_opts o1 = *to;
+    o1.photons_per_frame = 0;
+    tsm *t = NULL;
+    if (img->width != w || img->height != h)
+        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d, frames are "
+                       "%dx%d", path, img->width, img->height, w, h);
+    else if (!(t = tsm_new(w, h, &o1, err)))
+        rc = err ? err->code : SL_ENOMEM;
+    else if ((rc = tsm_add(t, img->data)) == SL_OK)
+        rc = tsm_power(t, ps);
+    tsm_free(t);
+    seq_free(img);
+    return rc;
+}
+
+static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
+                   double photons, float *img, cube_meta *m, sl_err *err)
+{
+    tsm_opts to;
+    tsm_opts_default(&to);
+    to.nangles = o->nangles > 0 ? o->nangles : 180;
+    to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
+    to.photons_per_frame = photons;
+    to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
+    tsm *t = NULL, *tr = NULL;
+    double *ps_ref = NULL, *ps_tgt = NULL;
+    int rc = tsm_sequence(s, &to, &t, err);
+    if (rc != SL_OK)
+        return rc;
+    if (ref) {
+        tsm_opts ro = to;
+        double gr;
+        photon_params(o, cube_reader_meta(ref->rd), &ro.photons_per_frame, &gr);
+        size_t np = (size_t)tsm_nangles(t) * tsm_nfreq(t);
+        ps_ref = malloc(np * sizeof *ps_ref);
+        ps_tgt = o->target_path ? malloc(np * sizeof *ps_tgt) : NULL;
+        if (!ps_ref || (o->target_path && !ps_tgt))
+            rc = sl_seterr(err, SL_ENOMEM, "out of memory");
+        else if ((rc = tsm_sequence(ref, &ro, &tr, err)) == SL_OK &&
+                 (rc = tsm_power(tr, ps_ref)) == SL_OK && o->target_path)
+            rc = tsm_target_power(o->target_path, &to, s->w, s->h, ps_tgt, err);
+        if (rc == SL_OK)
+            rc = tsm_set_reference(t, ps_ref, ps_tgt, o->wiener > 0 ? o->wiener : 0.05);
+        if (rc != SL_OK)
+            goto free_all;
+    }
+    if ((rc = tsm_result(t, img)) != SL_OK) {
+        sl_seterr(err, rc, "%s", tsm_errmsg(t));
+        goto free_all;
+    }
+    cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
+    cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
+free_all:
+    tsm_free(t);
+    tsm_free(tr);
+    free(ps_ref);
+    free(ps_tgt);
+    return rc;
+}
+
+/* The output header: the input's keywords plus what was done. */
+static void describe(const pipeline_opts *o, const stream *s, double photons,
+                     cube_meta *m)
+{
+    *m = *cube_reader_meta(s->rd);
+    cube_meta_set_str(m, "RECMETH", pipeline_method_name(o->method),
+                      "reconstruction method");
+    cube_meta_set_num(m, "RECNFRM", s->n, "frames reconstructed");
+    cube_meta_set_num(m, "RECPHOT", photons, "photons/frame for bias, 0 = unknown");
+    cube_meta_set_str(m, "RECREF", o->ref_path ? o->ref_path : "none",
+                      "reference (point-source) sequence");
+    if (o->method == PIPE_DIRECT)
+        cube_meta_set_str(m, "RECWIN", o->window == POWSPEC_WIN_NONE ? "none" :
+                          o->window == POWSPEC_WIN_HANN ? "hann" : "tukey",
+                          "frame apodisation");
+    if (s->pp)
+        prep_describe(s->pp, m);
+}
+
+int pipeline_run(const char *const *paths, int npaths,
+                 const pipeline_opts *o, pipeline_result *out, sl_err *err)
+{
+    double t0 = now_s();
+    memset(out, 0, sizeof *out);
+    if (o->method < 0 || o->method > PIPE_TSM_FOURIER)
+        return sl_seterr(err, SL_EINVAL, "unknown method %d", o->method);
+    stream s, ref;
+    stream *refp = NULL;
+    int rc = stream_open(&s, paths, npaths, o, err);
+    if (rc != SL_OK)
+        return rc;
+    if (o->ref_path) {
+        const char *rp[] = {o->ref_path};
+        if ((rc = stream_open(&ref, rp, 1, o, err)) != SL_OK)
+            goto close_s;
+        refp = &ref;
+        if (ref.w != s.w || ref.h != s.h) {
+            rc = sl_seterr(err, SL_EFORMAT, "reference %s is %dx%d, frames "
+                           "are %dx%d", o->ref_path, ref.w, ref.h, s.w, s.h);
+            goto close_ref;
+        }
+    }
+    if (o->learn_badpix && s.pp && (rc = learn_badpix(&s, err)) != SL_OK)
+        goto close_ref;
+    double photons, g;
+    photon_params(o, cube_reader_meta(s.rd), &photons, &g);
+    out->image = malloc(sizeof(float) * s.w * s.h);
+    if (!out->image) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory");
+        goto close_ref;
+    }
+    describe(o, &s, photons, &out->meta);
+    rc = o->method == PIPE_DIRECT
+             ? run_direct(&s, refp, o, photons, g, out->image, &out->meta, err)
+             : run_tsm(&s, refp, o, photons, out->image, &out->meta, err);
+    if (rc != SL_OK) {
+        pipeline_result_clear(out);
+        goto close_ref;
+    }
+    out->width = s.w;
+    out->height = s.h;
+    out->nframes = s.n;
+    out->plate_scale_arcsec = cube_reader_meta(s.rd)->plate_scale_arcsec;
+    out->elapsed_s = now_s() - t0;
+    cube_meta_set_num(&out->meta, "RECTIME", out->elapsed_s, "[s] reconstruction wall time");
+close_ref:
+    if (refp)
+        stream_close(refp);
+close_s:
+    stream_close(&s);
+    return rc;
+}

@@ -1,0 +1,76 @@
+/* pipeline.h - reconstruct a frame sequence on disk, end to end.
+ *
+ * The one entry point the CLI (`specklab recon`) and the daemon share:
+ * FITS frames in, a centred 2-D image and its header out.  Frames are
+ * streamed (cube_reader), cleaned (prep: sky, NaN/Inf, saturation, bad
+ * pixels) and fed to the chosen estimator:
+ *   direct       pass 1: power spectrum -> measured Fourier support;
+ *                pass 2: direct bispectrum on that support (closure
+ *                triangles with |u2| <= R2), phases by weighted phasor
+ *                recursion, modulus from the bispectrum's own
+ *                photon-corrected power spectrum, or divided by a
+ *                reference (point-source) sequence's;
+ *   tsm          Radon projections (spatial, the paper's way), 1-D
+ *                bispectra per angle, filtered back projection;
+ *   tsm-fourier  the same with projection spectra taken as radial slices
+ *                of each frame's 2-D FFT (no spatial Radon).
+ * Photon bias: frames known to be photon counts (SIMPHOT/SIMGAIN in the
+ * header, or the caller's photons_per_frame / adu_per_photon) get
+ * Wirnitzer's unbiased estimators; otherwise the power-spectrum bias is
+ * estimated from the floor beyond the cut-off (direct) or left alone.
+ * Memory: one frame plus the estimator's accumulators, independent of the
+ * number of frames.
+ */
+#ifndef SL_PIPELINE_H
+#define SL_PIPELINE_H
+
+#include "cube.h"
+#include "status.h"
+
+enum pipeline_method { PIPE_DIRECT = 0, PIPE_TSM = 1, PIPE_TSM_FOURIER = 2 };
+
+typedef struct pipeline_opts {
+    int method;               /* enum pipeline_method */
+    int nangles;              /* TSM projections; 0 = 180 */
+    int r2_px;                /* direct: |u2| radius; 0 = 0.14 min(w, h) */
+    int window;               /* POWSPEC_WIN_*; default TUKEY */
+    double tukey_alpha;       /* default 0.25 */
+    int prep;                 /* clean frames first (default 1) */
+    int learn_badpix;         /* extra pass to learn hot/dead pixels */
+    double saturation_adu;    /* raw values >= this are repaired; 0 = none */
+    /* Photon statistics: > 0 given; 0 = from the header (SIMPHOT,
+     * SIMGAIN) when present; < 0 = treat the data as not photon counts. */
+    double photons_per_frame;
+    double adu_per_photon;
+    const char *ref_path;     /* point-source reference sequence, or NULL */
+    /* With a reference: the PSF wanted in the result (a 2-D FITS image,
+     * e.g. a cophased point source), or NULL for the object itself
+     * band-limited at the cut-off. */
+    const char *target_path;
+    double wiener;            /* reference regulariser; 0 = default */
+    int nthreads;             /* direct bispectrum threads; 0 = 2 */
+    int refine_iters;         /* least-squares passes after the recursion */
+    int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
+} pipeline_opts;
+
+typedef struct pipeline_result {
+    int width, height;        /* the image: same size as a frame */
+    int nframes;              /* frames used */
+    float *image;             /* width*height, object centred at (w/2, h/2) */
+    double elapsed_s;         /* wall time of pipeline_run */
+    double plate_scale_arcsec;/* from the input header; NAN when unknown */
+    cube_meta meta;           /* header for the image (input's + ours) */
+} pipeline_result;
+
+void pipeline_opts_defaults(pipeline_opts *o);
+int pipeline_method_parse(const char *name, int *method);
+const char *pipeline_method_name(int method);
+
+/* Reconstruct paths[0..npaths) (a cube, a frame, or a list/glob of frames,
+ * as cube_reader_open takes them).  On success out owns the image: free it
+ * with pipeline_result_clear.  Errors name the file and the stage. */
+int pipeline_run(const char *const *paths, int npaths,
+                 const pipeline_opts *o, pipeline_result *out, sl_err *err);
+void pipeline_result_clear(pipeline_result *r);
+
+#endif

@@ -1,0 +1,185 @@
+/* tsm.h - tomographic speckle masking (Surya & Saha): the bispectrum
+ * reconstruction done on 1-D projections of the frames.
+ *
+ * The six steps, for a stream of frames:
+ *  tsm_add, per frame:
+ *   (1) projection spectra at nangles angles (radon.h): TSM_FOURIER takes
+ *       them as radial slices of one 2-D FFT (Fourier-slice theorem, exact
+ *       up to ~1e-4), TSM_SPATIAL projects with the bilinear ray-driven
+ *       Radon transform and FFTs each projection (the paper's way; ~70x
+ *       slower at 180 angles and damps high frequencies);
+ *   (2) per angle, accumulate in double the power |P(u)|^2, the mean
+ *       spectrum P(u) and the 1-D bispectrum B(u1,u2) = P(u1) P(u2)
+ *       conj(P(u1+u2)) over 1 <= u2 <= u1, u2 <= r2, u1+u2 <= cut-off.
+ *       Frames are buffered in blocks of `batch` so that each angle's
+ *       bispectrum stays in cache while a block is added (the accumulators
+ *       exceed the cache at 180 angles); memory does not depend on the
+ *       number of frames, and tsm_add allocates nothing.
+ *  tsm_result:
+ *   (3) 1-D phases per angle: phi(0) = phi(1) = 0 (phi(1) is the unknown
+ *       shift), then the unit-phasor recursion phi(u1+u2) = phi(u1) +
+ *       phi(u2) - beta(u1,u2) weighted per tsm_weight, then Gauss-Seidel
+ *       sweeps that re-estimate each phi(u) from every bispectrum element
+ *       containing u (as u1, u2 or u1+u2), tied to the same frequency at
+ *       the neighbouring angles (angle_reg; the slices are lines of one
+ *       2-D spectrum).  Measured gain of sweeps + tie, phase-only c: +0.01
+ *       noiseless, +0.02..0.03 at 1000 photons/frame (tsm_phase.c);
+ *   (4) modulus sqrt(<|P|^2>), photon-bias corrected, optionally divided
+ *       by a reference star's power spectrum with a Wiener regulariser;
+ *   (5) projections rebuilt and each centred on its own centroid (of the
+ *       part above centroid_frac of its peak): the centroid of a
+ *       projection is the projection of the object's centroid, so this is
+ *       one consistent 2-D shift.  With >= 2 neighbours within align_deg,
+ *       each projection is then aligned (cross-correlation on its whole
+ *       profile) to the sum of its neighbours, and the object re-centred
+ *       by one least-squares 2-D shift.  Measured (64^2, D/r0 ~ 8, 100
+ *       frames, 180 angles): plain positive-part centroids give c 0.935 on
+ *       a binary, the 5% threshold 0.967, plus neighbours 0.976;
+ *   (6) inversion: gridding FBP of the slices (TSM_FOURIER), spatial FBP
+ *       (TSM_SPATIAL), or the iterative non-negative inverse (TSM_INV_ITER,
+ *       for few angles).
+ * The image has the object's centroid at pixel (w/2, h/2).  Angles and
+ * projection coordinates follow radon.h (theta from +x towards +y; the
+ * projection axis at theta points to position angle theta - 90 deg).
+ *
+ * Photon bias (photons_per_frame > 0): frames are taken to be photon counts
+ * times a gain g = <frame sum> / photons_per_frame, and Wirnitzer's (1985)
+ * unbiased estimators are used: |P|^2 - g<S>, and B - g(|P(u1)|^2 +
+ * |P(u2)|^2 + |P(u1+u2)|^2) + 2 g^2 <S>.  A photon's Fourier slice is a
+ * unit phasor only on the Fourier path; the spatial path's interpolation
+ * spreads photons, so there the correction is approximate at high u.
+ * The modulus always uses the corrected power; the phases by default use
+ * the raw bispectrum, which measured better (bispec_bias_phase, tsm.c).
+ *
+ * Sizes: nproj (projection length, 1-D FFT size) defaults to the even
+ * number >= max(w, h): the object must lie in the disc of that diameter
+ * (projections are periodic with period nproj).  With J = cut-off bins the
+ * bispectrum holds about J^2/4 pairs per angle (r2 unlimited); at 200^2,
+ * 180 angles that is 2500 pairs, 7 MB of accumulators.
+ *
+ * Not re-entrant: one handle per thread; create handles from one thread
+ * (FFTW planner).
+ */
+#ifndef SL_TSM_H
+#define SL_TSM_H
+
+#include "radon.h"
+#include "status.h"
+
+typedef enum tsm_variant { TSM_FOURIER = 0, TSM_SPATIAL = 1 } tsm_variant;
+
+typedef enum tsm_weight {
+    TSM_WEIGHT_MODULUS = 0, /* |B|: measured best (tsm.c, phase_inputs) */
+    TSM_WEIGHT_SNR,      /* |B| / sqrt(<|P1|^2><|P2|^2><|P3|^2>) */
+    TSM_WEIGHT_SNR2,     /* its square (inverse phase variance) */
+    TSM_WEIGHT_UNIT      /* plain unit phasors */
+} tsm_weight;
+
+typedef enum tsm_apod {
+    TSM_APOD_NONE = 0,
+    TSM_APOD_HANN,       /* (1 + cos(pi u/J)) / 2 */
+    TSM_APOD_COSINE      /* cos(pi u / 2J) */
+} tsm_apod;
+
+typedef enum tsm_inverse {
+    TSM_INV_AUTO = 0,    /* gridding FBP (Fourier), spatial FBP (spatial) */
+    TSM_INV_FBP_GRID,
+    TSM_INV_FBP_SPATIAL,
+    TSM_INV_ITER         /* radon_invert_iter, non-negative */
+} tsm_inverse;
+
+typedef struct tsm_opts {
+    int nangles;               /* 0: 180 */
+    tsm_variant variant;
+    int nproj;                 /* 0: even >= max(w, h) */
+    double cutoff_cyc_px;      /* 0: 0.5 (Nyquist) */
+    int r2_bins;               /* max u2; 0: unlimited */
+    tsm_weight weight;
+    int refine_iters;          /* Gauss-Seidel sweeps; < 0: none; 0: 4 */
+    double angle_reg;          /* tie to neighbouring angles; 0: 1, < 0: off */
+    double centroid_frac;      /* centroid of the part above this x max;
+                                * 0: 0.05, < 0: positive part */
+    double align_deg;          /* align to neighbours within; 0: 8, < 0: off */
+    tsm_apod apod;
+    double photons_per_frame;  /* > 0: photon-bias correction */
+    int bispec_bias_phase;     /* 1: phases from the bias-corrected
+                                * bispectrum too (0: raw, see tsm.c) */
+    radon_window window;       /* FBP window */
+    tsm_inverse inverse;
+    int inv_iters;             /* TSM_INV_ITER iterations; 0: 40 */
+    int batch;                 /* frames per accumulation block; 0: 16 */
+    double oversamp;           /* Fourier-slice grid; 0: radon default */
+    int kernel_bins;           /* Fourier-slice kernel; 0: radon default */
+    unsigned fftw_flags;       /* 0: FFTW_MEASURE */
+} tsm_opts;
+
+void tsm_opts_default(tsm_opts *o);   /* all zero = the defaults above */
+
+typedef struct tsm tsm;
+
+tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err);
+void tsm_free(tsm *t);
+const char *tsm_errmsg(const tsm *t);
+/* Forget all frames (keeps plans and any reference). */
+void tsm_reset(tsm *t);
+
+int tsm_nangles(const tsm *t);
+int tsm_nproj(const tsm *t);
+int tsm_nfreq(const tsm *t);          /* J + 1 */
+int tsm_npairs(const tsm *t);         /* bispectrum elements per angle */
+int tsm_nframes(const tsm *t);
+
+/* Add one w*h frame.  SL_EDATA on NaN/Inf. */
+int tsm_add(tsm *t, const float *frame);
+/* Steps 3-6 into img (w*h).  SL_EDATA without frames.  May be called
+ * again after more tsm_add calls. */
+int tsm_result(tsm *t, float *img);
+
+/* Bias-corrected mean power spectra, nangles*nfreq doubles (u = 0..J). */
+int tsm_power(tsm *t, double *ps);
+/* Mean projections (nangles*nproj, band-limited to the cut-off): the
+ * projections of the long-exposure image. */
+int tsm_mean_projection(tsm *t, float *proj);
+/* Bias-corrected mean bispectrum element at angle k; u2 <= u1. */
+int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im);
+/* Transfer-function calibration: ps_ref is a point source's tsm_power
+ * (same geometry, same seeing statistics); ps_target (may be NULL) the
+ * power of the PSF wanted in the result, e.g. tsm_power of the
+ * diffraction-limited PSF.  The modulus becomes
+ *     flux * sqrt(Pn Rn / (Rn^2 + wiener) * Tn)
+ * with Pn, Rn, Tn the object's, reference's and target's power normalised
+ * at u = 0 (Tn = 1 without a target: the result is then the object
+ * itself, band-limited by the cut-off).  The regulariser is relative:
+ * wiener times the median of Rn^2 over u >= 1, because Rn spans decades
+ * with the seeing (its plateau is ~(r0/D)^2); 0.01..0.1 is typical.
+ * ps_ref NULL removes both. */
+int tsm_set_reference(tsm *t, const double *ps_ref, const double *ps_target,
+                      double wiener);
+/* After tsm_result: the recovered, centred projections (nangles*nproj,
+ * s = i - nproj/2) and their 1-D phases (nangles*nfreq, radians). */
+int tsm_projections(tsm *t, float *proj);
+int tsm_phases(tsm *t, double *phase);
+
+/* ---- 1-D bispectrum phase solver (tsm_phase.c), used by tsm_result ----
+ * Pairs are stored row by row: for u1 = 1..J-1 the row holds u2 = 1..len
+ * with len = min(u1, J - u1, r2), at index rowoff[u1] + u2 - 1. */
+typedef struct tsm_phase tsm_phase;
+
+tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err);
+void tsm_phase_free(tsm_phase *p);
+int tsm_phase_npairs(const tsm_phase *p);
+const int *tsm_phase_rowoff(const tsm_phase *p);   /* nfreq entries */
+const int *tsm_phase_rowlen(const tsm_phase *p);   /* nfreq entries */
+/* Inputs, filled by the caller: unit phasors exp(i beta) as (re, im)
+ * pairs, nangles*npairs*2 floats, and weights >= 0, nangles*npairs. */
+float *tsm_phase_phasors(tsm_phase *p);
+float *tsm_phase_weights(tsm_phase *p);
+/* Phases (nangles*nfreq radians) with phi(0) = phi(1) = 0: recursion, then
+ * `sweeps` Gauss-Seidel sweeps; angle_reg > 0 adds the neighbouring
+ * angles' current phasors, with that weight relative to the (normalised)
+ * bispectrum sum, to each update (angle K-1's neighbour is angle 0
+ * conjugated: theta + 180 deg is the same line reversed). */
+int tsm_phase_solve(tsm_phase *p, int sweeps, double angle_reg,
+                    double *phase);
+
+#endif

@@ -16,6 +16,7 @@ DRV_PKGS   := aravis-0.8 libusb-1.0 libmodbus glib-2.0
 CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
+DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 ifeq ($(CI),true)
@@ -40,6 +41,8 @@ tdrv_cflags  = $(shell $(PKG) --cflags $(TEST_DRV_PKGS) 2>/dev/null)
 tdrv_libs    = $(shell $(PKG) --libs $(TEST_DRV_PKGS) 2>/dev/null)
 schema_cflags = $(shell $(PKG) --cflags $(SCHEMA_PKGS) 2>/dev/null)
 schema_libs   = $(shell $(PKG) --libs $(SCHEMA_PKGS) 2>/dev/null)
+daemon_cflags = $(shell $(PKG) --cflags $(DAEMON_PKGS) 2>/dev/null)
+daemon_libs   = $(shell $(PKG) --libs $(DAEMON_PKGS) 2>/dev/null)
 
 RECON_SRC := $(wildcard recon/*.c)
 RECON_OBJ := $(RECON_SRC:%.c=$(BUILD)/%.o)
@@ -57,6 +60,10 @@ SCHEMA_OBJ := $(SCHEMA_SRC:%.c=$(BUILD)/%.o) $(BUILD)/schema/catalog_res.o
 SCHEMA_LIB := $(BUILD)/libschema.a
 SCHEMA_RES := schema/catalog.gresource.xml
 
+# daemon/: specklabd.
+DAEMON_SRC := $(wildcard daemon/*.c)
+DAEMON_OBJ := $(DAEMON_SRC:%.c=$(BUILD)/%.o)
+
 CLI_SRC   := $(wildcard cli/*.c)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
 
@@ -72,11 +79,17 @@ TDRV_SRC  := $(wildcard tests/drivers/test_*.c)
 TDRV_BIN  := $(TDRV_SRC:tests/drivers/%.c=$(BUILD)/tests/%)
 TCAT_SRC  := $(wildcard tests/catalog/test_*.c)
 TCAT_BIN  := $(TCAT_SRC:tests/catalog/%.c=$(BUILD)/tests/%)
-ALL_TESTS := $(TEST_BIN) $(TDRV_BIN) $(TCAT_BIN)
+TSTR_SRC  := $(wildcard tests/stress/test_*.c)
+TSTR_BIN  := $(TSTR_SRC:tests/stress/%.c=$(BUILD)/tests/%)
+# Integration: daemon + mocks + CLI client; they start programs from bin/.
+TINT_SRC  := $(wildcard tests/integration/test_*.c)
+TINT_BIN  := $(TINT_SRC:tests/integration/%.c=$(BUILD)/tests/%)
+TINT_HELP := $(filter-out $(TINT_SRC),$(wildcard tests/integration/*.c))
+ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
 
-PROGS := $(BIN)/specklab $(MOCK_BIN)
+PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd)
 
-.PHONY: all deps test quick asan bench fuzz demo clean
+.PHONY: all deps test quick stress asan bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
 
 $(BUILD)/recon/%.o: recon/%.c
@@ -124,13 +137,36 @@ $(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(RECON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(schema_libs) -lm
 
+$(BUILD)/tests/%: tests/stress/%.c $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(RECON_LIB) $(recon_libs)
+
+# Integration tests may link the CLI's client library and any helper .c
+# in tests/integration that is not itself a test.
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(wildcard cli/client.c) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
+	    $(recon_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) $(wildcard cli/client.c) -o $@ \
+	    $(LDFLAGS_ALL) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(daemon_libs) $(tdrv_libs) -lm
+
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_OBJ) $(DRV_LIB) $(RECON_LIB)
+$(BIN)/specklab: $(CLI_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_OBJ) $(DRV_LIB) $(RECON_LIB) $(recon_libs) $(cli_libs)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	    $(recon_libs) $(cli_libs) $(schema_libs)
+
+$(BUILD)/daemon/%.o: daemon/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema $(recon_cflags) $(daemon_cflags) -c $< -o $@
+
+$(BIN)/specklabd: $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	    $(recon_libs) $(daemon_libs) -lm
 
 $(BUILD)/tests/%: tests/unit/%.c $(RECON_LIB)
 	@mkdir -p $(dir $@)
@@ -155,6 +191,10 @@ test: deps
 quick: all
 	@SL_QUICK=1 tests/run $(TEST_BIN)
 
+# The numerical-stability suite with its slow cases too.
+stress: all
+	@SL_STRESS_FULL=1 tests/run $(TSTR_BIN)
+
 # The whole suite under AddressSanitizer + UndefinedBehaviorSanitizer, in a
 # separate build tree.
 asan: deps
@@ -173,5 +213,5 @@ demo: deps
 clean:
 	rm -rf build build-asan bin
 
--include $(RECON_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+-include $(RECON_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
          $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d)

@@ -98,7 +98,7 @@ $(BUILD)/recon/%.o: recon/%.c
 
 $(BUILD)/cli/%.o: cli/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers $(recon_cflags) $(cli_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema $(recon_cflags) $(cli_cflags) $(schema_cflags) -c $< -o $@
 
 $(BUILD)/drivers/%.o: drivers/%.c
 	@mkdir -p $(dir $@)

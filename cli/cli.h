@@ -11,6 +11,7 @@ int cmd_sim(int argc, char **argv);
 int cmd_mask(int argc, char **argv);
 int cmd_stage(int argc, char **argv);
 int cmd_camera(int argc, char **argv);
+int cmd_devices(int argc, char **argv);
 int cmd_recon(int argc, char **argv);
 int cmd_compare(int argc, char **argv);
 int cmd_binary(int argc, char **argv);

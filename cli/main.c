@@ -16,6 +16,7 @@ static const command commands[] = {
     {"compare", cmd_compare, "correlation coefficient c of two images"},
     {"binary", cmd_binary, "separation, position angle and dm of a binary image"},
     {"mask", cmd_mask, "generate or show an aperture mask"},
+    {"devices", cmd_devices, "cameras and stages found, with diagnosis (USB speed, permissions)"},
     {"camera", cmd_camera, "machine-vision cameras: list, info, grab frames to a FITS cube"},
     {"stage", cmd_stage, "home, move, stop or reset the stage wheels, or show their status"},
 };

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "wisdom.h"
 
 typedef struct command {
     const char *name;
@@ -20,6 +21,23 @@ static const command commands[] = {
     {"camera", cmd_camera, "machine-vision cameras: list, info, grab frames to a FITS cube"},
     {"stage", cmd_stage, "home, move, stop or reset the stage wheels, or show their status"},
 };
+
+/* Commands that plan FFTs start from the saved FFTW wisdom and save what
+ * they measured, so FFTW_MEASURE costs ~1 s once per machine and size.
+ * Wisdom problems only warn: they cost speed, never results. */
+static int run_with_wisdom(const command *c, int argc, char **argv)
+{
+    int plans = !strcmp(c->name, "sim") || !strcmp(c->name, "recon") ||
+                !strcmp(c->name, "bench");
+    const char *path = plans ? wisdom_default_path() : NULL;
+    sl_err e = {0};
+    if (path && wisdom_load(path, NULL, &e) != SL_OK)
+        fprintf(stderr, "specklab: warning: %s\n", e.msg);
+    int status = c->run(argc, argv);
+    if (path && status == 0 && wisdom_save(path, &e) != SL_OK)
+        fprintf(stderr, "specklab: warning: %s\n", e.msg);
+    return status;
+}
 
 static void usage(FILE *f)
 {
@@ -45,7 +63,7 @@ int main(int argc, char **argv)
             char name[64];
             snprintf(name, sizeof name, "specklab %s", commands[i].name);
             argv[1] = name;
-            return commands[i].run(argc - 1, argv + 1);
+            return run_with_wisdom(&commands[i], argc - 1, argv + 1);
         }
     }
     fprintf(stderr, "specklab: unknown command '%s'\n\n", argv[1]);

@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stats.h"
+
 struct prep {
     int w, h;
     prep_opts o;
@@ -261,7 +263,7 @@ static float sky_level(prep *p, const float *f)
             if (edge && isfinite(v) && !p->bad[(size_t)y * w + x])
                 p->border[k++] = v;
         }
-    return median(p->border, k);
+    return stats_median_inplace(p->border, (size_t)k);
 }
 
 /* Replace flagged pixels (flag[i] != 0) by their good neighbours' median. */

@@ -1,9 +1,12 @@
 /* seeing.c - see seeing.h. */
 #include "seeing.h"
 
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "stats.h"
 
 #define ARCSEC_PER_RAD (180.0 * 3600.0 / M_PI)
 
@@ -49,38 +52,6 @@ void seeing_free(seeing *s)
     free(s);
 }
 
-/* Quickselect median of n floats (destroys the order): O(n). */
-static float select_median(float *v, size_t n)
-{
-    size_t lo = 0, hi = n - 1, k = n / 2;
-    while (lo < hi) {
-        float pivot = v[(lo + hi) / 2];
-        size_t i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot)
-                i++;
-            while (v[j] > pivot)
-                j--;
-            if (i <= j) {
-                float t = v[i];
-                v[i] = v[j];
-                v[j] = t;
-                i++;
-                if (j == 0)
-                    break;
-                j--;
-            }
-        }
-        if (k <= j)
-            hi = j;
-        else if (k >= i)
-            lo = i;
-        else
-            break;
-    }
-    return v[k];
-}
-
 int seeing_add(seeing *s, const float *f)
 {
     size_t n = (size_t)s->w * s->h, m = 0;
@@ -89,7 +60,7 @@ int seeing_add(seeing *s, const float *f)
             s->scratch[m++] = f[i];
     if (m < 4)
         return SL_OK;
-    float med = select_median(s->scratch, m);
+    float med = stats_median_inplace(s->scratch, m);
     double sw = 0, sx = 0, sy = 0;
     for (int y = 0; y < s->h; y++)
         for (int x = 0; x < s->w; x++) {

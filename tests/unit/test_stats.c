@@ -1,0 +1,31 @@
+/* test_stats.c - quickselect median against sorting. */
+#include <stdlib.h>
+
+#include "rng.h"
+#include "stats.h"
+#include "tcheck.h"
+
+static int cmpf(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+TEST(median_equals_sorted_middle)
+{
+    rng r;
+    rng_init(&r, 3, 0);
+    float v[257], w[257];
+    for (int trial = 0; trial < 300; trial++) {
+        size_t n = 1 + rng_u64(&r) % 257;
+        int dup = trial % 3 == 0; /* many ties */
+        for (size_t i = 0; i < n; i++)
+            v[i] = w[i] = dup ? (float)(rng_u64(&r) % 4) : (float)rng_normal(&r);
+        qsort(w, n, sizeof *w, cmpf);
+        float m = stats_median_inplace(v, n);
+        CHECK(m == w[n / 2], "n %zu: got %g, sorted middle %g", n, m, w[n / 2]);
+    }
+    CHECK(stats_median_inplace(v, 0) == 0, "empty");
+}
+
+TC_MAIN(TC_CASE(median_equals_sorted_middle))

@@ -52,19 +52,41 @@ void seeing_free(seeing *s)
     free(s);
 }
 
+/* Threshold for the centroid: pixels more than max(5 noise sigma, 5 % of
+ * the peak) above the median.  Without it, read and photon noise over the
+ * whole frame pull every centroid towards the frame centre and the image
+ * motion (hence r0) comes out wrong by a seeing-dependent factor. */
+static float centroid_threshold(seeing *s, const float *f, size_t n,
+                                float *med_out)
+{
+    size_t m = 0;
+    float peak = -INFINITY;
+    for (size_t i = 0; i < n; i++)
+        if (isfinite(f[i])) {
+            s->scratch[m++] = f[i];
+            peak = f[i] > peak ? f[i] : peak;
+        }
+    if (m < 4)
+        return NAN;
+    float med = stats_median_inplace(s->scratch, m);
+    for (size_t i = 0; i < m; i++)
+        s->scratch[i] = fabsf(s->scratch[i] - med);
+    float sigma = 1.4826f * stats_median_inplace(s->scratch, m);
+    float t = 5 * sigma, t2 = 0.05f * (peak - med);
+    *med_out = med;
+    return t > t2 ? t : t2;
+}
+
 int seeing_add(seeing *s, const float *f)
 {
-    size_t n = (size_t)s->w * s->h, m = 0;
-    for (size_t i = 0; i < n; i++)
-        if (isfinite(f[i]))
-            s->scratch[m++] = f[i];
-    if (m < 4)
+    size_t n = (size_t)s->w * s->h;
+    float med = 0, thr = centroid_threshold(s, f, n, &med);
+    if (!isfinite(thr))
         return SL_OK;
-    float med = stats_median_inplace(s->scratch, m);
     double sw = 0, sx = 0, sy = 0;
     for (int y = 0; y < s->h; y++)
         for (int x = 0; x < s->w; x++) {
-            float v = f[(size_t)y * s->w + x] - med;
+            float v = f[(size_t)y * s->w + x] - med - thr;
             if (v > 0 && isfinite(v)) {
                 sw += v;
                 sx += v * x;

@@ -66,6 +66,9 @@ DAEMON_OBJ := $(DAEMON_SRC:%.c=$(BUILD)/%.o)
 
 CLI_SRC   := $(wildcard cli/*.c)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
+# Everything but main(): linked into bin/specklab and the integration tests.
+CLI_LIB   := $(BUILD)/libcli.a
+CLI_MAIN  := $(BUILD)/cli/main.o
 
 # mocks/NAME/*.c -> bin/specklab-NAME: separate programs that speak the
 # real protocols on loopback (tests and the demo only).
@@ -142,21 +145,26 @@ $(BUILD)/tests/%: tests/stress/%.c $(RECON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(RECON_LIB) $(recon_libs)
 
-# Integration tests may link the CLI's client library and any helper .c
-# in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(wildcard cli/client.c) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+# Integration tests link the CLI library (client, commands) and any helper
+# .c in tests/integration that is not itself a test.
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
-	    $(recon_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) $(wildcard cli/client.c) -o $@ \
-	    $(LDFLAGS_ALL) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(daemon_libs) $(tdrv_libs) -lm
+	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
+	    $(LDFLAGS_ALL) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) \
+	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) -lm
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+$(CLI_LIB): $(filter-out $(CLI_MAIN),$(CLI_OBJ))
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	rm -f $@ && ar rcs $@ $^
+
+$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
 	    $(recon_libs) $(cli_libs) $(schema_libs)
 
 $(BUILD)/daemon/%.o: daemon/%.c

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "cmd_daemon.h"
 #include "cube.h"
 #include "metrics.h"
 #include "pipeline.h"
@@ -128,6 +129,13 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
 
 int cmd_recon(int argc, char **argv)
 {
+    /* `specklab recon RUN-ID`: a catalogued run, reconstructed by the
+     * daemon and stored as a new reconstruction row. */
+    for (int i = 1; i < argc; i++)
+        if (argv[i][0] != '-' && (i == 1 || argv[i - 1][0] != '-' ||
+                                  strchr(argv[i - 1], '=')))
+            if (cmd_recon_is_run_id(argv[i]))
+                return cmd_recon_run(argc, argv);
     recon_args a = {0};
     GOptionEntry entries[] = {
         {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier (default tsm)", "M"},

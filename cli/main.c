@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "cmd_daemon.h"
 #include "wisdom.h"
 
 typedef struct command {
@@ -13,6 +14,12 @@ typedef struct command {
 
 static const command commands[] = {
     {"sim", cmd_sim, "simulate a speckle cube (scene, mask, turbulence, detector)"},
+    {"experiment", cmd_experiment, "run an experiment on the bench (binary-bench) through specklabd"},
+    {"runs", cmd_runs, "catalogued runs: list, show"},
+    {"screens", cmd_screens, "phase screens with their measured seeing: list, show"},
+    {"masks", cmd_masks, "aperture masks on the bench: list"},
+    {"export", cmd_export, "export a run: FITS, reconstructions and a JSON sidecar"},
+    {"daemon", cmd_daemon, "specklabd status and devices"},
     {"recon", cmd_recon, "reconstruct a FITS sequence (direct bispectrum or TSM)"},
     {"compare", cmd_compare, "correlation coefficient c of two images"},
     {"binary", cmd_binary, "separation, position angle and dm of a binary image"},

@@ -1,0 +1,394 @@
+/* acquire.c - one run's acquisition on the runner thread: camera ready,
+ * frames into the .part cube, then the cube finished on disk and
+ * catalogued (see runner.h for the sequence and its guarantees).
+ *
+ * Costs per frame: one camera_pop (a copy of the pixels into floats), one
+ * cube_writer_append (cfitsio buffered write, the only per-frame I/O),
+ * one seeing_add (one pass over the pixels) and a 40-byte FRAMES row in
+ * memory (4 MB at 100000 frames).  Flushing (header rewrite + fill) and
+ * the progress event happen at most every 100 ms; the catalogue's
+ * progress (one fsynced commit) at most every second.
+ */
+#define _GNU_SOURCE
+#include "runner_int.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cube.h"
+#include "cubefile.h"
+#include "seeing.h"
+
+#define POP_SLICE_MS 200        /* abort and loss are checked this often */
+#define FLUSH_US 100000         /* cube flush + progress event period */
+#define CATALOG_US 1000000      /* catalogue progress period */
+#define OPEN_RETRY_US 8000000  /* keep trying to get the camera this long */
+#define RETRY_PAUSE_US 500000
+
+typedef struct acq {
+    runner *r;
+    const runner_spec *sp;
+    camera_config cf;
+    camera_info info;
+    char *part, *final;
+    cube_writer *w;
+    GArray *rows;              /* cubefile_row */
+    float *pix;
+    seeing *see;
+    int stored, failed;
+    int64_t packets_missing;
+    camera_stats base;         /* the handle's counters at the run's start */
+    gint64 t_flush;
+} acq;
+
+/* This run's camera counters: the handle's totals carry over from run to
+ * run (and across reconnects), so subtract those at the start. */
+static uint64_t since(uint64_t now, uint64_t base)
+{
+    return now >= base ? now - base : 0;
+}
+
+static void run_stats(const acq *a, camera_stats *out)
+{
+    camera_stats n;
+    const camera_stats *b = &a->base;
+    camera_stats_get(a->r->cam, &n);
+    out->completed = since(n.completed, b->completed);
+    out->failed = since(n.failed, b->failed);
+    for (int i = 0; i < CAMERA_FRAME_NSTATUS; i++)
+        out->by_status[i] = since(n.by_status[i], b->by_status[i]);
+    out->missing_packets = since(n.missing_packets, b->missing_packets);
+    out->resent_packets = since(n.resent_packets, b->resent_packets);
+    out->underruns = since(n.underruns, b->underruns);
+    out->id_gaps = since(n.id_gaps, b->id_gaps);
+    out->timeouts = since(n.timeouts, b->timeouts);
+    out->reconnects = since(n.reconnects, b->reconnects);
+}
+
+static int configure(camera *c, const config *cfg, const runner_spec *sp, camera_config *cf)
+{
+    int rc = camera_set_pixel_format(c, camera_pixfmt_parse(cfg->pixel_format));
+    if (rc == SL_OK && cfg->roi[2] > 0)
+        rc = camera_set_roi(c, cfg->roi[0], cfg->roi[1], cfg->roi[2], cfg->roi[3]);
+    if (rc == SL_OK)
+        rc = camera_set_exposure_us(c, sp->exposure_us);
+    if (rc == SL_OK && isfinite(cfg->frame_rate_hz))
+        rc = camera_set_frame_rate_hz(c, cfg->frame_rate_hz);
+    if (rc == SL_OK)
+        rc = camera_set_trigger(c, CAMERA_TRIGGER_FREE_RUN);
+    if (rc == SL_OK)
+        rc = camera_config_get(c, cf);
+    return rc;
+}
+
+/* Open the camera if needed and configure it.  A handle that fails (the
+ * camera was restarted or lost since the last run) is replaced by a
+ * fresh open, retried for up to OPEN_RETRY_US:
+ *  - a controller that died without letting go (the previous daemon,
+ *    SIGKILLed) keeps the camera's control privilege until its heartbeat
+ *    times out (~3 s), and streaming is refused until then;
+ *  - a camera whose previous controller died mid-acquisition may still be
+ *    "acquiring" towards that controller's port: a fresh handle is primed
+ *    with one start/stop (AcquisitionStop) so the real start streams to
+ *    this daemon (observed with Aravis's fake GigE camera).
+ * An absent camera costs ~2.5 s per attempt, so a run fails after at
+ * most ~OPEN_RETRY_US + 2.5 s. */
+static int camera_ready(runner *r, acq *a, sl_err *e)
+{
+    gint64 end = g_get_monotonic_time() + OPEN_RETRY_US;
+    for (int attempt = 0;; attempt++) {
+        int fresh = !r->cam || r->cam_fresh, rc = SL_OK;
+        if (attempt > 0)
+            g_usleep(RETRY_PAUSE_US);
+        if (!r->cam && camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address,
+                                   e) != SL_OK) {
+            r->cam = NULL;
+            rc = SL_EIO;
+        } else if (configure(r->cam, r->cfg, a->sp, &a->cf) != SL_OK ||
+                   camera_info_get(r->cam, &a->info) != SL_OK ||
+                   (fresh && (camera_start(r->cam, 2) != SL_OK || camera_stop(r->cam) != SL_OK))) {
+            sl_seterr(e, SL_EIO, "%s", camera_errmsg(r->cam));
+            camera_close(r->cam);
+            r->cam = NULL;
+            rc = SL_EIO;
+        }
+        if (rc == SL_OK) {
+            r->cam_fresh = 0;
+            runner_note_camera(r, 1, &a->info, NULL);
+            return SL_OK;
+        }
+        runner_note_camera(r, 0, NULL, e->msg);
+        if (g_get_monotonic_time() >= end || runner_aborting(r))
+            return rc;
+        g_message("camera: %s; retrying", e->msg);
+    }
+}
+
+static void fill_meta(acq *a, cube_meta *m)
+{
+    const runner_spec *sp = a->sp;
+    const config *cfg = a->r->cfg;
+    cube_meta_init(m);
+    snprintf(m->instrume, sizeof m->instrume, "%.30s %.30s", a->info.vendor, a->info.model);
+    g_strlcpy(m->object, sp->object, sizeof m->object);
+    snprintf(m->bunit, sizeof m->bunit, "adu");
+    m->exptime_s = a->cf.exposure_us * 1e-6;
+    m->plate_scale_arcsec = cfg->plate_scale_arcsec;
+    m->wavelength_m = cfg->wavelength_m;
+    cube_meta_set_str(m, "RUNUUID", sp->uuid, "specklab run");
+    cube_meta_set_str(m, "SCREEN", sp->screen, "phase screen in the beam");
+    cube_meta_set_num(m, "SCRSLOT", sp->screen_slot, "screen wheel slot");
+    cube_meta_set_str(m, "MASK", sp->mask, "pupil mask in the beam");
+    cube_meta_set_num(m, "MSKSLOT", sp->mask_slot, "mask wheel slot");
+    cube_meta_set_str(m, "CAMSER", a->info.serial, "camera serial number");
+    cube_meta_set_str(m, "CAMADDR", a->info.address, "camera address");
+    cube_meta_set_str(m, "PIXFMT", camera_pixfmt_name(a->cf.pixel_format), "pixel format");
+    cube_meta_set_num(m, "ROIX", a->cf.x, "[px] ROI offset x on the sensor");
+    cube_meta_set_num(m, "ROIY", a->cf.y, "[px] ROI offset y on the sensor");
+    cube_meta_set_num(m, "BINX", a->cf.bin_x, "binning x");
+    cube_meta_set_num(m, "BINY", a->cf.bin_y, "binning y");
+    if (isfinite(a->cf.gain_db))
+        cube_meta_set_num(m, "GAINDB", a->cf.gain_db, "[dB] camera gain");
+    if (isfinite(a->cf.frame_rate_hz))
+        cube_meta_set_num(m, "FRATE", a->cf.frame_rate_hz, "[Hz] frame rate setting");
+}
+
+/* Flush the cube, then tell subscribers: a progress event never counts a
+ * frame that is not on disk. */
+static int flush_progress(acq *a, sl_err *e)
+{
+    if (cube_writer_flush(a->w) != SL_OK)
+        return sl_seterr(e, SL_EIO, "%s", cube_writer_errmsg(a->w));
+    a->t_flush = g_get_monotonic_time();
+    runner_note_progress(a->r, a->stored);
+    server_event_async(a->r->srv, a->sp->uuid,
+                       proto_event_progress(a->sp->uuid, a->stored, a->sp->frames, a->failed));
+    return SL_OK;
+}
+
+/* The frame loop.  Returns how it ended, with the reason. */
+static acq_end stream(acq *a, char *reason, size_t rlen)
+{
+    runner *r = a->r;
+    const runner_spec *sp = a->sp;
+    size_t npx = (size_t)a->cf.width * (size_t)a->cf.height;
+    camera_frame fr = {.f32 = a->pix, .capacity_px = npx};
+    int max_failed = r->cfg->max_failed_frames > 0 ? r->cfg->max_failed_frames
+                                                   : MAX(100, sp->frames);
+    gint64 t_frame = g_get_monotonic_time(), t_db = t_frame;
+    sl_err e = {0};
+    if (camera_start(r->cam, r->cfg->buffers) != SL_OK) {
+        snprintf(reason, rlen, "%s", camera_errmsg(r->cam));
+        return ACQ_FAILED;
+    }
+    while (a->stored < sp->frames) {
+        if (runner_aborting(r)) {
+            g_mutex_lock(&r->mu);
+            snprintf(reason, rlen, "%s", r->abort_reason);
+            g_mutex_unlock(&r->mu);
+            return ACQ_ABORTED;
+        }
+        int rc = camera_pop(r->cam, POP_SLICE_MS, &fr);
+        gint64 now = g_get_monotonic_time();
+        if (rc == CAMERA_ETIMEOUT && now - t_frame <= r->cfg->lost_timeout_s * 1e6)
+            continue;
+        if (rc == CAMERA_ETIMEOUT || rc == CAMERA_ELOST) {
+            snprintf(reason, rlen, "camera lost after %d of %d frames: %s", a->stored,
+                     sp->frames, rc == CAMERA_ELOST ? camera_errmsg(r->cam) : "no frame for");
+            if (rc == CAMERA_ETIMEOUT)
+                snprintf(reason + strlen(reason), rlen - strlen(reason), " %.1f s",
+                         (now - t_frame) * 1e-6);
+            runner_note_camera(r, 0, NULL, reason);
+            return ACQ_FAILED;
+        }
+        if (rc != SL_OK && rc != SL_ERANGE) {
+            snprintf(reason, rlen, "camera failed after %d of %d frames: %s", a->stored,
+                     sp->frames, camera_errmsg(r->cam));
+            return ACQ_FAILED;
+        }
+        t_frame = now;
+        cubefile_row row = {fr.frame_id, fr.cam_ts_ns, fr.sys_ts_ns, (int)fr.status, -1};
+        if (rc == SL_OK && fr.status == CAMERA_FRAME_SUCCESS &&
+            (fr.width != a->cf.width || fr.height != a->cf.height))
+            row.status = CAMERA_FRAME_SIZE_MISMATCH;   /* not this run's geometry */
+        if (rc == SL_OK && row.status == CAMERA_FRAME_SUCCESS) {
+            if (cube_writer_append(a->w, a->pix) != SL_OK) {
+                g_array_append_val(a->rows, row);
+                snprintf(reason, rlen, "writing the cube failed after %d of %d frames: %s",
+                         a->stored, sp->frames, cube_writer_errmsg(a->w));
+                return ACQ_FAILED;
+            }
+            if (a->see)
+                seeing_add(a->see, a->pix);
+            row.cube_idx = a->stored++;
+        } else if (++a->failed > max_failed) {
+            g_array_append_val(a->rows, row);
+            snprintf(reason, rlen, "%d damaged frames (last %s) with %d of %d good: is the "
+                     "link dropping packets?", a->failed,
+                     camera_frame_status_name(row.status), a->stored, sp->frames);
+            return ACQ_FAILED;
+        }
+        g_array_append_val(a->rows, row);
+        if ((now - a->t_flush >= FLUSH_US || a->stored == sp->frames) &&
+            flush_progress(a, &e) != SL_OK) {
+            snprintf(reason, rlen, "writing the cube failed after %d of %d frames: %s",
+                     a->stored, sp->frames, e.msg);
+            return ACQ_FAILED;
+        }
+        if (now - t_db >= CATALOG_US) {
+            camera_stats cs;
+            run_stats(a, &cs);
+            t_db = now;
+            if (catalog_run_update_progress(r->cat, sp->uuid, a->stored, a->failed,
+                                            (int64_t)cs.missing_packets) != SL_OK)
+                g_warning("run %s: %s", sp->uuid, catalog_errmsg(r->cat));
+        }
+    }
+    return ACQ_COMPLETE;
+}
+
+/* Close, salvage, table, fsync, rename, checksum, catalogue.  Any file
+ * error turns a complete acquisition into a failed one, with the reason;
+ * whatever frames are on disk stay there, catalogued. */
+static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
+{
+    runner *r = a->r;
+    const char *uuid = a->sp->uuid;
+    camera_stats cs = {0};
+    sl_err e = {0};
+    char hex[65];
+    int on_disk = 0;
+    if (r->cam) {
+        if (camera_is_started(r->cam))
+            camera_stop(r->cam);
+        run_stats(a, &cs);
+    }
+    a->packets_missing = (int64_t)cs.missing_packets;
+    if (cube_writer_close(a->w) != SL_OK && end == ACQ_COMPLETE) {
+        snprintf(reason, rlen, "closing the cube failed after %d frames: %s", a->stored,
+                 cube_writer_errmsg(a->w));
+        end = ACQ_FAILED;
+    }
+    cube_writer_free(a->w);
+    a->w = NULL;
+    if (cubefile_salvage(a->part, &on_disk, &e) != SL_OK) {
+        g_warning("run %s: %s", uuid, e.msg);
+        if (end == ACQ_COMPLETE)
+            snprintf(reason, rlen, "%s", e.msg), end = ACQ_FAILED;
+    } else if (on_disk < a->stored) {
+        g_warning("run %s: %d of %d frames reached the disk", uuid, on_disk, a->stored);
+        if (end == ACQ_COMPLETE)
+            snprintf(reason, rlen, "only %d of %d frames reached the disk", on_disk, a->stored),
+                end = ACQ_FAILED;
+    }
+    if (cubefile_frames_table(a->part, (const cubefile_row *)(void *)a->rows->data,
+                              (long)a->rows->len, r->cam ? &cs : NULL, &e) != SL_OK) {
+        g_warning("run %s: %s", uuid, e.msg);
+        if (end == ACQ_COMPLETE)
+            snprintf(reason, rlen, "%s", e.msg), end = ACQ_FAILED;
+    }
+    const char *path = a->part;
+    if (cubefile_fsync(a->part, &e) != SL_OK && end == ACQ_COMPLETE)
+        snprintf(reason, rlen, "%s", e.msg), end = ACQ_FAILED;
+    if (end == ACQ_COMPLETE) {
+        if (rename(a->part, a->final) == 0 && cubefile_fsync_dir(a->final, &e) == SL_OK) {
+            path = a->final;
+        } else {
+            snprintf(reason, rlen, "%s: rename to .fits: %s", a->part,
+                     e.msg[0] ? e.msg : g_strerror(errno));
+            end = ACQ_FAILED;
+            if (access(a->final, F_OK) == 0)
+                path = a->final;
+        }
+    }
+    int sha_ok = cubefile_sha256(path, hex, &e) == SL_OK;
+    if (!sha_ok)
+        g_warning("run %s: %s", uuid, e.msg);
+    /* Counts first: a terminal run's progress can no longer change. */
+    if (catalog_run_set_file(r->cat, uuid, path, sha_ok ? hex : NULL) != SL_OK ||
+        catalog_run_update_progress(r->cat, uuid, on_disk, a->failed, a->packets_missing) !=
+            SL_OK)
+        g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
+    a->stored = on_disk;
+    runner_note_progress(r, on_disk);
+    if (end == ACQ_COMPLETE)
+        runner_set_state(r, uuid, CATALOG_STORED, NULL);
+    else
+        runner_set_state(r, uuid, end == ACQ_ABORTED ? CATALOG_ABORTED : CATALOG_FAILED,
+                         reason);
+    return end;
+}
+
+acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
+                    size_t rlen, double *r0_m)
+{
+    acq a = {.r = r, .sp = sp};
+    sl_err e = {0};
+    cube_meta meta;
+    acq_end end = ACQ_FAILED;
+    *r0_m = NAN;
+    if (camera_ready(r, &a, &e) != SL_OK) {
+        snprintf(reason, rlen, "%s", e.msg);
+        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
+        return ACQ_FAILED;
+    }
+    camera_stats_get(r->cam, &a.base);
+    if (runner_aborting(r)) {
+        g_mutex_lock(&r->mu);
+        snprintf(reason, rlen, "%s", r->abort_reason);
+        g_mutex_unlock(&r->mu);
+        runner_set_state(r, sp->uuid, CATALOG_ABORTED, reason);
+        return ACQ_ABORTED;
+    }
+    a.part = g_strdup_printf("%s/runs/%s.fits.part", r->cfg->data_dir, sp->uuid);
+    a.final = g_strdup_printf("%s/runs/%s.fits", r->cfg->data_dir, sp->uuid);
+    a.rows = g_array_sized_new(FALSE, FALSE, sizeof(cubefile_row), (guint)sp->frames);
+    a.pix = g_new(float, (size_t)a.cf.width * (size_t)a.cf.height);
+    if (seeing_new(&a.see, a.cf.width, a.cf.height, r->cfg->plate_scale_arcsec,
+                   r->cfg->wavelength_m, pupil_m, &e) != SL_OK) {
+        g_warning("run %s: no seeing estimate: %s", sp->uuid, e.msg);
+        a.see = NULL;
+    }
+    fill_meta(&a, &meta);
+    int bitpix = a.cf.pixel_format == CAMERA_PIX_MONO8 ? 8 : CUBE_BITPIX_U16;
+    /* The file is catalogued before its first frame, so a crash at any
+     * point leaves a run that names its partial cube. */
+    int rc = cube_writer_open(&a.w, a.part, a.cf.width, a.cf.height, bitpix, &meta, &e);
+    if (rc == SL_OK && cube_writer_flush(a.w) != SL_OK)
+        rc = sl_seterr(&e, SL_EIO, "%s", cube_writer_errmsg(a.w));
+    if (rc == SL_OK && catalog_run_set_file(r->cat, sp->uuid, a.part, NULL) != SL_OK)
+        rc = sl_seterr(&e, SL_EIO, "%s", catalog_errmsg(r->cat));
+    if (rc != SL_OK) {
+        snprintf(reason, rlen, "%s", e.msg);
+        cube_writer_free(a.w);
+        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
+        goto free_acq;
+    }
+    a.t_flush = g_get_monotonic_time();
+    runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
+    end = finish(&a, stream(&a, reason, rlen), reason, rlen);
+    seeing_result sr;
+    if (end == ACQ_COMPLETE && a.see && seeing_result_get(a.see, &sr) == SL_OK &&
+        isfinite(sr.r0_m) && sr.r0_m > 0) {
+        catalog_r0 m;
+        catalog_r0_init(&m);
+        m.run_uuid = sp->uuid;   /* screen: the run's */
+        m.r0_m = sr.r0_m;
+        m.wavelength_m = r->cfg->wavelength_m;
+        m.method = "image-motion";
+        if (catalog_r0_add(r->cat, &m, NULL) == SL_OK)
+            *r0_m = sr.r0_m;
+        else
+            g_warning("run %s: recording r0: %s", sp->uuid, catalog_errmsg(r->cat));
+    }
+free_acq:
+    seeing_free(a.see);
+    g_free(a.pix);
+    g_array_free(a.rows, TRUE);
+    g_free(a.part);
+    g_free(a.final);
+    return end;
+}

@@ -1,0 +1,452 @@
+/* config.c - GKeyFile configuration over embedded defaults; see config.h.
+ *
+ * Reading is two-layered: the defaults text is parsed first, the file's
+ * values replace them key by key (screens/masks list by list), and only
+ * then is anything validated, so an error names the key that is wrong
+ * whichever layer set it.
+ */
+#include "config.h"
+
+#include <errno.h>
+#include <glib.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static const char defaults_text[] =
+    "# specklabd built-in defaults: the mocks on loopback, data under ./var\n"
+    "[camera]\n"
+    "backend=aravis\n"
+    "address=127.0.0.1\n"
+    "exposure_us=10000\n"
+    "pixel_format=Mono16\n"
+    "# frame_rate_hz=100      (unset: keep the camera's)\n"
+    "# roi=0,0,64,64          (x,y,w,h; unset: the whole sensor)\n"
+    "buffers=32\n"
+    "# the fake camera's default: Nyquist at 633 nm for a 1.1 m pupil\n"
+    "plate_scale_arcsec=0.05934801016109636\n"
+    "wavelength_nm=633\n"
+    "lost_timeout_s=10\n"
+    "max_failed_frames=0\n"
+    "\n"
+    "[stage]\n"
+    "backend=tcp\n"
+    "address=127.0.0.1:1502\n"
+    "unit=1\n"
+    "# device=/dev/ttyUSB0    (rtu)\n"
+    "# baud=19200             (rtu)\n"
+    "move_timeout_ms=15000\n"
+    "settle_ms=250\n"
+    "response_timeout_ms=500\n"
+    "call_timeout_ms=2000\n"
+    "\n"
+    "[screens]\n"
+    "0=open\n1=screen1\n2=screen2\n3=screen3\n4=screen4\n5=screen5\n"
+    "\n"
+    "[masks]\n"
+    "0=full\n1=nrm17\n"
+    "\n"
+    "[paths]\n"
+    "data_dir=./var\n"
+    "# catalog=./var/specklab.db   (empty: DATA_DIR/specklab.db)\n"
+    "\n"
+    "[daemon]\n"
+    "# socket=./var/specklabd.sock (empty: DATA_DIR/specklabd.sock)\n"
+    "reconstruct=tsm\n"
+    "projections=0\n"
+    "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
+    "fftw=measure\n"
+    "max_clients=64\n";
+
+const char *config_defaults_text(void)
+{
+    return defaults_text;
+}
+
+static const char *const known_keys[][16] = {
+    {"camera", "backend", "address", "exposure_us", "pixel_format",
+     "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
+     "lost_timeout_s", "max_failed_frames", NULL},
+    {"stage", "backend", "address", "unit", "device", "baud",
+     "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
+     NULL},
+    {"paths", "data_dir", "catalog", NULL},
+    {"daemon", "socket", "reconstruct", "projections", "fftw", "max_clients", NULL},
+};
+
+int config_method_valid(const char *name)
+{
+    return name && (!strcmp(name, "tsm") || !strcmp(name, "tsm-fourier") ||
+                    !strcmp(name, "direct") || !strcmp(name, "none"));
+}
+
+/* Names become catalogue keys and FITS values, never paths; still, keep
+ * them plain so they can never be mistaken for one. */
+static int name_ok(const char *s)
+{
+    size_t n = strlen(s);
+    return n >= 1 && n <= 64 && strspn(s, "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                          "abcdefghijklmnopqrstuvwxyz"
+                                          "0123456789_.+-") == n &&
+           !strstr(s, "..") && strspn(s, "0123456789") != n; /* not a slot */
+}
+
+/* Every key of the file is known (slot groups: keys are slot numbers). */
+static int check_keys(GKeyFile *kf, const char *path, sl_err *err)
+{
+    gsize ng = 0;
+    gchar **groups = g_key_file_get_groups(kf, &ng);
+    int rc = SL_OK;
+    for (gsize g = 0; g < ng && rc == SL_OK; g++) {
+        const char *const *known = NULL;
+        int slots = !strcmp(groups[g], "screens") || !strcmp(groups[g], "masks");
+        for (size_t i = 0; i < G_N_ELEMENTS(known_keys); i++)
+            if (!strcmp(known_keys[i][0], groups[g]))
+                known = known_keys[i] + 1;
+        if (!known && !slots) {
+            rc = sl_seterr(err, SL_EINVAL, "%s: unknown group [%s]", path, groups[g]);
+            break;
+        }
+        gchar **keys = g_key_file_get_keys(kf, groups[g], NULL, NULL);
+        for (int k = 0; keys && keys[k] && rc == SL_OK; k++) {
+            int ok = 0;
+            if (slots) {
+                char *end = NULL;
+                long v = strtol(keys[k], &end, 10);
+                ok = end != keys[k] && !*end && v >= 0 && v < CONFIG_MAX_SLOTS;
+            }
+            for (int i = 0; !slots && known[i]; i++)
+                ok |= !strcmp(known[i], keys[k]);
+            if (!ok)
+                rc = sl_seterr(err, SL_EINVAL, "%s: [%s] %s: unknown key%s", path,
+                               groups[g], keys[k],
+                               slots ? " (expected a slot number 0..15)" : "");
+        }
+        g_strfreev(keys);
+    }
+    g_strfreev(groups);
+    return rc;
+}
+
+/* Copy every key of src over dst; a slot group replaces dst's as a whole. */
+static void overlay(GKeyFile *dst, GKeyFile *src)
+{
+    gchar **groups = g_key_file_get_groups(src, NULL);
+    for (int g = 0; groups[g]; g++) {
+        if (!strcmp(groups[g], "screens") || !strcmp(groups[g], "masks"))
+            g_key_file_remove_group(dst, groups[g], NULL);
+        gchar **keys = g_key_file_get_keys(src, groups[g], NULL, NULL);
+        for (int k = 0; keys && keys[k]; k++) {
+            gchar *v = g_key_file_get_value(src, groups[g], keys[k], NULL);
+            g_key_file_set_value(dst, groups[g], keys[k], v);
+            g_free(v);
+        }
+        g_strfreev(keys);
+    }
+    g_strfreev(groups);
+}
+
+/* Typed getters: a missing key gives def; a bad value is an error naming
+ * the key.  Numbers are parsed in the C locale (g_ascii_strtod). */
+static int get_str(GKeyFile *kf, const char *g, const char *k, const char *def,
+                   char **out)
+{
+    gchar *v = g_key_file_get_string(kf, g, k, NULL);
+    *out = v ? g_strstrip(v) : g_strdup(def);
+    return SL_OK;
+}
+
+static int get_num(GKeyFile *kf, const char *g, const char *k, double def,
+                   double lo, double hi, double *out, sl_err *err)
+{
+    gchar *v = g_key_file_get_string(kf, g, k, NULL);
+    char *end = NULL;
+    *out = def;
+    if (!v)
+        return SL_OK;
+    g_strstrip(v);
+    double x = g_ascii_strtod(v, &end);
+    int rc = SL_OK;
+    if (end == v || *end || !(x >= lo && x <= hi))
+        rc = sl_seterr(err, SL_EINVAL, "config [%s] %s = '%s': expected a number in "
+                       "%g..%g", g, k, v, lo, hi);
+    else
+        *out = x;
+    g_free(v);
+    return rc;
+}
+
+static int get_int(GKeyFile *kf, const char *g, const char *k, int def, int lo,
+                   int hi, int *out, sl_err *err)
+{
+    double x;
+    int rc = get_num(kf, g, k, def, lo, hi, &x, err);
+    if (rc == SL_OK && x != floor(x))
+        rc = sl_seterr(err, SL_EINVAL, "config [%s] %s = %g: expected an integer", g, k, x);
+    *out = (int)x;
+    return rc;
+}
+
+static int slot_cmp(const void *a, const void *b)
+{
+    return ((const config_slot *)a)->slot - ((const config_slot *)b)->slot;
+}
+
+static int get_slots(GKeyFile *kf, const char *g, int masks, config_slot *out,
+                     int *n, sl_err *err)
+{
+    gchar **keys = g_key_file_get_keys(kf, g, NULL, NULL);
+    int rc = SL_OK;
+    *n = 0;
+    for (int k = 0; keys && keys[k] && rc == SL_OK; k++) {
+        char *end = NULL;
+        long slot = strtol(keys[k], &end, 10);
+        gchar *v = g_key_file_get_string(kf, g, keys[k], NULL);
+        char *colon = v && masks ? strchr(v, ':') : NULL;
+        if (colon)
+            *colon = '\0';
+        if (v)
+            g_strstrip(v);
+        if (end == keys[k] || *end || slot < 0 || slot >= CONFIG_MAX_SLOTS || !v ||
+            !name_ok(v)) {
+            rc = sl_seterr(err, SL_EINVAL, "config [%s] %s = '%s': expected SLOT=NAME with "
+                           "slot 0..%d and a non-numeric name of 1..64 characters "
+                           "[A-Za-z0-9_.+-]%s",
+                           g, keys[k], v ? v : "", CONFIG_MAX_SLOTS - 1,
+                           masks ? " (optionally :MASKFILE)" : "");
+        } else {
+            for (int i = 0; i < *n && rc == SL_OK; i++)
+                if (!strcmp(out[i].name, v))
+                    rc = sl_seterr(err, SL_EINVAL, "config [%s]: name '%s' in slots %d "
+                                   "and %ld", g, v, out[i].slot, slot);
+        }
+        if (rc == SL_OK) {
+            out[*n].slot = (int)slot;
+            out[*n].name = g_strdup(v);
+            out[*n].file = colon && *g_strstrip(colon + 1) ? g_strdup(g_strstrip(colon + 1)) : NULL;
+            (*n)++;
+        }
+        g_free(v);
+    }
+    g_strfreev(keys);
+    if (rc == SL_OK && *n == 0)
+        rc = sl_seterr(err, SL_EINVAL, "config [%s]: no slots", g);
+    qsort(out, (size_t)*n, sizeof *out, slot_cmp);
+    return rc;
+}
+
+/* "x,y,w,h" or empty. */
+static int get_roi(GKeyFile *kf, int roi[4], sl_err *err)
+{
+    gchar *v = g_key_file_get_string(kf, "camera", "roi", NULL);
+    int rc = SL_OK;
+    char tail;
+    memset(roi, 0, 4 * sizeof *roi);
+    if (v && *g_strstrip(v) &&
+        (sscanf(v, "%d,%d,%d,%d%c", &roi[0], &roi[1], &roi[2], &roi[3], &tail) != 4 ||
+         roi[0] < 0 || roi[1] < 0 || roi[2] < 8 || roi[3] < 8))
+        rc = sl_seterr(err, SL_EINVAL, "config [camera] roi = '%s': expected X,Y,W,H "
+                       "with W, H >= 8", v);
+    g_free(v);
+    return rc;
+}
+
+/* "HOST:PORT" -> host, port. */
+static int split_address(const char *a, char **host, int *port, sl_err *err)
+{
+    const char *colon = strrchr(a, ':');
+    char *end = NULL;
+    long p = colon ? strtol(colon + 1, &end, 10) : -1;
+    if (!colon || colon == a || end == colon + 1 || *end || p < 1 || p > 65535)
+        return sl_seterr(err, SL_EINVAL, "config [stage] address = '%s': expected "
+                         "HOST:PORT", a);
+    *host = g_strndup(a, (size_t)(colon - a));
+    *port = (int)p;
+    return SL_OK;
+}
+
+static char *absolute(const char *p)
+{
+    if (g_path_is_absolute(p))
+        return g_canonicalize_filename(p, NULL);
+    gchar *cwd = g_get_current_dir();
+    gchar *r = g_canonicalize_filename(p, cwd);
+    g_free(cwd);
+    return r;
+}
+
+static int read_values(config *c, GKeyFile *kf, sl_err *err)
+{
+    int rc = SL_OK;
+    char *s = NULL;
+    get_str(kf, "camera", "backend", "aravis", &c->camera_backend);
+    get_str(kf, "camera", "address", "127.0.0.1", &c->camera_address);
+    get_str(kf, "camera", "pixel_format", "Mono16", &c->pixel_format);
+    if (strcmp(c->pixel_format, "Mono16") && strcmp(c->pixel_format, "Mono8"))
+        return sl_seterr(err, SL_EINVAL, "config [camera] pixel_format = '%s': expected "
+                         "Mono16 or Mono8", c->pixel_format);
+    if ((rc = get_num(kf, "camera", "exposure_us", 10000, 1, 1e7, &c->exposure_us, err)) ||
+        (rc = get_num(kf, "camera", "frame_rate_hz", NAN, 0.01, 1e5, &c->frame_rate_hz, err)) ||
+        (rc = get_roi(kf, c->roi, err)) ||
+        (rc = get_int(kf, "camera", "buffers", 32, 2, 1024, &c->buffers, err)) ||
+        (rc = get_num(kf, "camera", "plate_scale_arcsec", 0.0593480101610963, 1e-6, 1e3,
+                      &c->plate_scale_arcsec, err)) ||
+        (rc = get_num(kf, "camera", "wavelength_nm", 633, 100, 30000, &c->wavelength_m, err)) ||
+        (rc = get_num(kf, "camera", "lost_timeout_s", 10, 0.5, 3600, &c->lost_timeout_s, err)) ||
+        (rc = get_int(kf, "camera", "max_failed_frames", 0, 0, INT_MAX, &c->max_failed_frames,
+                      err)))
+        return rc;
+    c->wavelength_m *= 1e-9;
+    get_str(kf, "stage", "backend", "tcp", &c->stage_backend);
+    get_str(kf, "stage", "device", "", &c->stage_device);
+    if (strcmp(c->stage_backend, "tcp") && strcmp(c->stage_backend, "rtu"))
+        return sl_seterr(err, SL_EINVAL, "config [stage] backend = '%s': expected tcp or rtu",
+                         c->stage_backend);
+    get_str(kf, "stage", "address", "127.0.0.1:1502", &s);
+    rc = strcmp(c->stage_backend, "tcp") ? SL_OK
+                                          : split_address(s, &c->stage_host, &c->stage_port, err);
+    g_free(s);
+    if (rc || (rc = get_int(kf, "stage", "unit", 1, 0, 247, &c->stage_unit, err)) ||
+        (rc = get_int(kf, "stage", "baud", 19200, 300, 4000000, &c->stage_baud, err)) ||
+        (rc = get_int(kf, "stage", "move_timeout_ms", 15000, 100, 600000, &c->move_timeout_ms,
+                      err)) ||
+        (rc = get_int(kf, "stage", "settle_ms", 250, 0, 60000, &c->settle_ms, err)) ||
+        (rc = get_int(kf, "stage", "response_timeout_ms", 500, 10, 60000,
+                      &c->response_timeout_ms, err)) ||
+        (rc = get_int(kf, "stage", "call_timeout_ms", 2000, 10, 600000, &c->call_timeout_ms,
+                      err)))
+        return rc;
+    if ((rc = get_slots(kf, "screens", 0, c->screens, &c->nscreens, err)) ||
+        (rc = get_slots(kf, "masks", 1, c->masks, &c->nmasks, err)))
+        return rc;
+    get_str(kf, "paths", "data_dir", "./var", &s);
+    c->data_dir = absolute(*s ? s : ".");
+    g_free(s);
+    get_str(kf, "paths", "catalog", "", &s);
+    c->catalog = *s ? absolute(s) : g_build_filename(c->data_dir, "specklab.db", NULL);
+    g_free(s);
+    get_str(kf, "daemon", "socket", "", &s);
+    c->socket = *s ? absolute(s) : g_build_filename(c->data_dir, "specklabd.sock", NULL);
+    g_free(s);
+    get_str(kf, "daemon", "reconstruct", "tsm", &c->reconstruct);
+    if (!config_method_valid(c->reconstruct))
+        return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected tsm, "
+                         "tsm-fourier, direct or none", c->reconstruct);
+    get_str(kf, "daemon", "fftw", "measure", &s);
+    c->fftw_measure = !strcmp(s, "measure");
+    if (!c->fftw_measure && strcmp(s, "estimate"))
+        rc = sl_seterr(err, SL_EINVAL, "config [daemon] fftw = '%s': expected measure or "
+                       "estimate", s);
+    g_free(s);
+    if (rc)
+        return rc;
+    if ((rc = get_int(kf, "daemon", "projections", 0, 0, 4096, &c->projections, err)) ||
+        (rc = get_int(kf, "daemon", "max_clients", 64, 1, 4096, &c->max_clients, err)))
+        return rc;
+    return SL_OK;
+}
+
+int config_load(config *c, const char *path, const char *socket_override,
+                const char *data_dir_override, sl_err *err)
+{
+    GKeyFile *kf = g_key_file_new(), *file = NULL;
+    GError *ge = NULL;
+    int rc = SL_OK;
+    memset(c, 0, sizeof *c);
+    if (!g_key_file_load_from_data(kf, defaults_text, sizeof defaults_text - 1,
+                                   G_KEY_FILE_NONE, &ge)) {
+        rc = sl_seterr(err, SL_EINVAL, "built-in defaults: %s", ge->message);
+        goto free_kf;
+    }
+    if (path) {
+        file = g_key_file_new();
+        if (!g_key_file_load_from_file(file, path, G_KEY_FILE_NONE, &ge)) {
+            rc = sl_seterr(err, ge->domain == G_FILE_ERROR ? SL_EIO : SL_EINVAL,
+                           "config %s: %s", path, ge->message);
+            goto free_kf;
+        }
+        if ((rc = check_keys(file, path, err)) != SL_OK)
+            goto free_kf;
+        overlay(kf, file);
+    }
+    if (data_dir_override) {
+        g_key_file_set_string(kf, "paths", "data_dir", data_dir_override);
+        /* The derived paths follow the new data directory unless the file
+         * named them explicitly. */
+        if (!file || !g_key_file_has_key(file, "paths", "catalog", NULL))
+            g_key_file_set_string(kf, "paths", "catalog", "");
+        if (!file || !g_key_file_has_key(file, "daemon", "socket", NULL))
+            g_key_file_set_string(kf, "daemon", "socket", "");
+    }
+    if (socket_override)
+        g_key_file_set_string(kf, "daemon", "socket", socket_override);
+    rc = read_values(c, kf, err);
+free_kf:
+    if (ge)
+        g_error_free(ge);
+    if (file)
+        g_key_file_free(file);
+    g_key_file_free(kf);
+    if (rc != SL_OK)
+        config_clear(c);
+    return rc;
+}
+
+void config_clear(config *c)
+{
+    g_free(c->camera_backend);
+    g_free(c->camera_address);
+    g_free(c->pixel_format);
+    g_free(c->stage_backend);
+    g_free(c->stage_host);
+    g_free(c->stage_device);
+    for (int i = 0; i < c->nscreens; i++)
+        g_free(c->screens[i].name), g_free(c->screens[i].file);
+    for (int i = 0; i < c->nmasks; i++)
+        g_free(c->masks[i].name), g_free(c->masks[i].file);
+    g_free(c->data_dir);
+    g_free(c->catalog);
+    g_free(c->socket);
+    g_free(c->reconstruct);
+    memset(c, 0, sizeof *c);
+}
+
+static const config_slot *find(const config_slot *v, int n, const char *key)
+{
+    char *end = NULL;
+    long slot = key ? strtol(key, &end, 10) : -1;
+    int numeric = key && end != key && !*end;
+    for (int i = 0; key && i < n; i++)
+        if (numeric ? v[i].slot == slot : !strcmp(v[i].name, key))
+            return &v[i];
+    return NULL;
+}
+
+const config_slot *config_screen_find(const config *c, const char *name_or_slot)
+{
+    return find(c->screens, c->nscreens, name_or_slot);
+}
+
+const config_slot *config_mask_find(const config *c, const char *name_or_slot)
+{
+    return find(c->masks, c->nmasks, name_or_slot);
+}
+
+const config_slot *config_screen_at(const config *c, int slot)
+{
+    for (int i = 0; i < c->nscreens; i++)
+        if (c->screens[i].slot == slot)
+            return &c->screens[i];
+    return NULL;
+}
+
+const config_slot *config_mask_at(const config *c, int slot)
+{
+    for (int i = 0; i < c->nmasks; i++)
+        if (c->masks[i].slot == slot)
+            return &c->masks[i];
+    return NULL;
+}

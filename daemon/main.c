@@ -1,0 +1,336 @@
+/* main.c - specklabd: options, start-up, the main loop, shutdown.
+ *
+ *   specklabd [--config FILE] [--socket PATH] [--data-dir DIR]
+ *             [--foreground] [--quiet] [--print-defaults]
+ *
+ * Start-up, in this order (each step can refuse to start, exit 1):
+ *   1. configuration (config.h); without --foreground the process forks
+ *      here, before any thread exists, and the parent exits 0 only once
+ *      the child is serving (or 1 when it failed);
+ *   2. DATA_DIR, DATA_DIR/runs, DATA_DIR/recon (0750), and an exclusive
+ *      flock on DATA_DIR/specklabd.lock: a second daemon on the same data
+ *      must not "recover" the first one's live runs;
+ *   3. the socket (server.h), so a live daemon on it is found early;
+ *   4. the catalogue: configured screens and masks upserted; every run
+ *      left non-terminal by a previous daemon gets its partial cube
+ *      salvaged (cubefile_salvage: frames on disk counted), is marked
+ *      'interrupted', and its file re-checksummed;
+ *   5. the worker and runner threads, signal sources, then "READY
+ *      socket=PATH" on stdout and the main loop.
+ * SIGTERM/SIGINT: stop listening, abort the current run ("daemon
+ * stopping": its cube is closed and kept), mark queued runs aborted, let
+ * the worker finish its current reconstruction, deliver the last events,
+ * close everything, remove the socket, exit 0.  SIGPIPE and SIGXFSZ are
+ * ignored: a vanished client or a file-size limit must be an error
+ * return, not the end of the daemon.
+ */
+#define _GNU_SOURCE
+#include <errno.h>
+#include <fcntl.h>
+#include <glib-unix.h>
+#include <glib.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cubefile.h"
+#include "dispatch.h"
+/* After GLib: recon's `mask` typedef would clash with gutils.h parameters. */
+#include "mask.h"
+
+typedef struct opts {
+    char *config, *socket, *data_dir;
+    gboolean foreground, quiet, print_defaults;
+} opts;
+
+static int parse_opts(int argc, char **argv, opts *o)
+{
+    GOptionEntry entries[] = {
+        {"config", 'c', 0, G_OPTION_ARG_FILENAME, &o->config, "configuration file", "FILE"},
+        {"socket", 's', 0, G_OPTION_ARG_FILENAME, &o->socket, "control socket path", "PATH"},
+        {"data-dir", 'd', 0, G_OPTION_ARG_FILENAME, &o->data_dir, "data directory", "DIR"},
+        {"foreground", 'f', 0, G_OPTION_ARG_NONE, &o->foreground, "do not detach", NULL},
+        {"quiet", 'q', 0, G_OPTION_ARG_NONE, &o->quiet, "log warnings only", NULL},
+        {"print-defaults", 0, 0, G_OPTION_ARG_NONE, &o->print_defaults,
+         "print the built-in configuration and exit", NULL},
+        {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    GOptionContext *ctx = g_option_context_new("- the specklab bench daemon");
+    GError *ge = NULL;
+    g_option_context_add_main_entries(ctx, entries, NULL);
+    g_option_context_set_description(ctx,
+        "Serves daemon/PROTOCOL.md on a Unix socket (mode 0660, the daemon's group).\n"
+        "Prints 'READY socket=PATH' once serving.  SIGTERM/SIGINT stop it cleanly.");
+    int ok = g_option_context_parse(ctx, &argc, &argv, &ge);
+    if (!ok)
+        fprintf(stderr, "specklabd: %s (try --help)\n", ge->message);
+    else if (argc > 1)
+        fprintf(stderr, "specklabd: unexpected argument '%s'\n", argv[1]), ok = 0;
+    if (ge)
+        g_error_free(ge);
+    g_option_context_free(ctx);
+    return ok ? 0 : 2;
+}
+
+/* ---- data directory and lock ------------------------------------------------ */
+
+static int prepare_dirs(const config *cfg, int *lock_fd, sl_err *e)
+{
+    const char *sub[] = {"", "runs", "recon"};
+    for (size_t i = 0; i < G_N_ELEMENTS(sub); i++) {
+        char *p = g_build_filename(cfg->data_dir, sub[i], NULL);
+        int rc = g_mkdir_with_parents(p, 0750);
+        if (rc != 0)
+            sl_seterr(e, SL_EIO, "%s: %s", p, g_strerror(errno));
+        g_free(p);
+        if (rc != 0)
+            return SL_EIO;
+    }
+    char *lock = g_build_filename(cfg->data_dir, "specklabd.lock", NULL);
+    *lock_fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC, 0640);
+    int rc = SL_OK;
+    if (*lock_fd < 0)
+        rc = sl_seterr(e, SL_EIO, "%s: %s", lock, g_strerror(errno));
+    else if (flock(*lock_fd, LOCK_EX | LOCK_NB) != 0)
+        rc = sl_seterr(e, SL_EIO, "%s: another specklabd uses this data directory (%s)", lock,
+                       g_strerror(errno));
+    g_free(lock);
+    return rc;
+}
+
+/* ---- catalogue at start ------------------------------------------------------ */
+
+static int upsert_slots(const config *cfg, catalog *cat, sl_err *e)
+{
+    for (int i = 0; i < cfg->nscreens; i++)
+        if (catalog_screen_upsert(cat, cfg->screens[i].name, cfg->screens[i].slot, NULL,
+                                  NULL) != SL_OK)
+            return sl_seterr(e, SL_EIO, "%s", catalog_errmsg(cat));
+    for (int i = 0; i < cfg->nmasks; i++) {
+        const config_slot *s = &cfg->masks[i];
+        mask *m = NULL;
+        int rc = s->file ? mask_read(&m, s->file, e) : mask_named(&m, s->name, e);
+        if (rc != SL_OK)
+            return sl_seterr(e, rc, "config [masks] %d=%s: %s", s->slot, s->name, e->msg);
+        int n = mask_nholes(m);
+        double *x = g_new(double, n > 0 ? n : 1), *y = g_new(double, n > 0 ? n : 1);
+        for (int h = 0; h < n; h++)
+            mask_hole(m, h, &x[h], &y[h]);
+        catalog_mask cm = {
+            .name = s->name, .slot = s->slot,
+            .kind = mask_is_full(m) ? CATALOG_MASK_FULL : CATALOG_MASK_HOLES,
+            .diameter_m = mask_is_full(m) ? mask_diameter_m(m) : mask_hole_diameter_m(m),
+            .nholes = n, .x_m = x, .y_m = y, .description = NULL};
+        rc = catalog_mask_upsert(cat, &cm, NULL);
+        g_free(x);
+        g_free(y);
+        mask_free(m);
+        if (rc != SL_OK)
+            return sl_seterr(e, rc, "%s", catalog_errmsg(cat));
+    }
+    return SL_OK;
+}
+
+typedef struct orphan {
+    char uuid[CATALOG_UUID_LEN + 1];
+    char *file;
+} orphan;
+
+static int collect_orphan(const catalog_run *r, void *user)
+{
+    if (catalog_state_is_terminal(r->state))
+        return 0;
+    orphan o = {{0}, g_strdup(r->file_path)};
+    /* Killed between the rename to .fits and the catalogue's new path. */
+    if (o.file && g_str_has_suffix(o.file, ".part") && access(o.file, F_OK) != 0) {
+        char *done = g_strndup(o.file, strlen(o.file) - 5);
+        if (access(done, F_OK) == 0)
+            g_free(o.file), o.file = done;
+        else
+            g_free(done);
+    }
+    memcpy(o.uuid, r->uuid, sizeof o.uuid);
+    g_array_append_val((GArray *)user, o);
+    return 0;
+}
+
+/* Runs a previous daemon left behind: count the frames their cube really
+ * holds, mark them interrupted, checksum what is on disk. */
+static int recover_runs(const config *cfg, catalog *cat, sl_err *e)
+{
+    GArray *v = g_array_new(FALSE, FALSE, sizeof(orphan));
+    int rc = catalog_run_list(cat, NULL, collect_orphan, v);
+    if (rc != SL_OK) {
+        sl_seterr(e, rc, "%s", catalog_errmsg(cat));
+        goto free_v;
+    }
+    for (guint i = 0; i < v->len; i++) {
+        orphan *o = &g_array_index(v, orphan, i);
+        catalog_run r;
+        int n = 0;
+        if (o->file && cubefile_under(cfg->data_dir, o->file) &&
+            cubefile_salvage(o->file, &n, e) == SL_OK &&
+            catalog_run_get(cat, o->uuid, &r) == SL_OK) {
+            catalog_run_update_progress(cat, o->uuid, n, r.frames_failed, r.packets_missing);
+            catalog_run_clear(&r);
+        }
+    }
+    rc = catalog_runs_mark_interrupted(cat);
+    if (rc < 0) {
+        sl_seterr(e, rc, "%s", catalog_errmsg(cat));
+        goto free_v;
+    }
+    if (rc > 0)
+        g_message("%d run(s) left by the previous daemon marked interrupted", rc);
+    rc = SL_OK;
+    for (guint i = 0; i < v->len; i++) {
+        orphan *o = &g_array_index(v, orphan, i);
+        char hex[65];
+        sl_err e2 = {0};
+        if (o->file && cubefile_under(cfg->data_dir, o->file) &&
+            cubefile_sha256(o->file, hex, &e2) == SL_OK)
+            catalog_run_set_file(cat, o->uuid, o->file, hex);
+    }
+free_v:
+    for (guint i = 0; i < v->len; i++)
+        g_free(g_array_index(v, orphan, i).file);
+    g_array_free(v, TRUE);
+    return rc;
+}
+
+/* ---- signals, logging, detaching ---------------------------------------------- */
+
+static gboolean on_signal(gpointer loop)
+{
+    g_message("stopping");
+    g_main_loop_quit(loop);
+    return G_SOURCE_REMOVE;
+}
+
+static void log_quiet(const gchar *domain, GLogLevelFlags level, const gchar *msg, gpointer u)
+{
+    (void)domain, (void)level, (void)msg, (void)u;
+}
+
+/* Fork; the parent waits for the child's readiness byte.  Returns the
+ * write end for the child (-1 in the foreground). */
+static int detach(void)
+{
+    int p[2];
+    if (pipe2(p, O_CLOEXEC) != 0) {
+        perror("specklabd: pipe");
+        exit(1);
+    }
+    pid_t pid = fork();
+    if (pid < 0) {
+        perror("specklabd: fork");
+        exit(1);
+    }
+    if (pid > 0) {
+        char c = 0;
+        close(p[1]);
+        ssize_t n;
+        while ((n = read(p[0], &c, 1)) < 0 && errno == EINTR)
+            ;
+        exit(n == 1 && c == 'R' ? 0 : 1);
+    }
+    close(p[0]);
+    setsid();
+    int nul = open("/dev/null", O_RDWR);
+    if (nul >= 0) {
+        dup2(nul, 0);
+        dup2(nul, 1);
+        if (nul > 2)
+            close(nul);
+    }
+    return p[1];
+}
+
+int main(int argc, char **argv)
+{
+    opts o = {0};
+    config cfg;
+    sl_err e = {0};
+    int status = 1, lock_fd = -1, ready_fd = -1;
+    daemon_ctx d = {0};
+    if ((status = parse_opts(argc, argv, &o)) != 0)
+        goto free_opts;
+    status = 1;
+    if (o.print_defaults) {
+        fputs(config_defaults_text(), stdout);
+        status = 0;
+        goto free_opts;
+    }
+    if (config_load(&cfg, o.config, o.socket, o.data_dir, &e) != SL_OK) {
+        fprintf(stderr, "specklabd: %s\n", e.msg);
+        status = 2;
+        goto free_opts;
+    }
+    if (o.quiet)
+        g_log_set_handler(NULL, G_LOG_LEVEL_MESSAGE | G_LOG_LEVEL_INFO, log_quiet, NULL);
+    signal(SIGPIPE, SIG_IGN);
+    signal(SIGXFSZ, SIG_IGN);
+    if (!o.foreground)
+        ready_fd = detach();
+    d.cfg = &cfg;
+    d.started_us = g_get_monotonic_time();
+    GMainLoop *loop = g_main_loop_new(NULL, FALSE);
+    /* The main thread owns the main context from here to the end, also
+     * outside g_main_loop_run: g_main_context_invoke from the threads then
+     * always queues (server_*_async) instead of running the callback on
+     * the calling thread when nobody owns the context. */
+    g_main_context_acquire(g_main_context_default());
+    if (prepare_dirs(&cfg, &lock_fd, &e) != SL_OK ||
+        server_new(&d.srv, cfg.socket, cfg.max_clients, dispatch_request, &d, &e) != SL_OK ||
+        catalog_open(&d.cat, cfg.catalog, &e) != SL_OK || upsert_slots(&cfg, d.cat, &e) != SL_OK ||
+        recover_runs(&cfg, d.cat, &e) != SL_OK ||
+        worker_new(&d.wk, &cfg, d.srv, &e) != SL_OK ||
+        runner_new(&d.run, &cfg, d.srv, d.wk, &e) != SL_OK) {
+        fprintf(stderr, "specklabd: %s\n", e.msg);
+        goto stop;
+    }
+    g_unix_signal_add(SIGTERM, on_signal, loop);
+    g_unix_signal_add(SIGINT, on_signal, loop);
+    printf("READY socket=%s\n", cfg.socket);
+    fflush(stdout);
+    g_message("serving %s; data %s; catalogue %s", cfg.socket, cfg.data_dir, cfg.catalog);
+    if (ready_fd >= 0) {
+        if (write(ready_fd, "R", 1) != 1)
+            g_warning("readiness pipe: %s", g_strerror(errno));
+        close(ready_fd);
+        ready_fd = -1;
+    }
+    g_main_loop_run(loop);
+    status = 0;
+stop:
+    server_stop_listening(d.srv);
+    runner_stop(d.run);
+    worker_stop(d.wk);
+    /* devices queries in flight end within the stage call timeout. */
+    for (gint64 end = g_get_monotonic_time() + (cfg.call_timeout_ms + 1000) * 1000LL;
+         d.pending_tasks > 0 && g_get_monotonic_time() < end;)
+        g_main_context_iteration(NULL, TRUE);
+    while (g_main_context_iteration(NULL, FALSE))
+        ;   /* the threads' last events and replies */
+    runner_free(d.run);
+    worker_free(d.wk);
+    if (d.pending_tasks > 0)   /* a stuck query still holds the server */
+        g_warning("leaving with %d devices queries unanswered", d.pending_tasks);
+    else
+        server_free(d.srv);
+    catalog_close(d.cat);
+    g_main_context_release(g_main_context_default());
+    g_main_loop_unref(loop);
+    if (lock_fd >= 0)
+        close(lock_fd);
+    config_clear(&cfg);
+free_opts:
+    g_free(o.config);
+    g_free(o.socket);
+    g_free(o.data_dir);
+    return status;
+}

@@ -1,0 +1,372 @@
+/* runner.c - the run queue, the acquisition thread and the moving step;
+ * see runner.h (acquire.c does the camera and the files). */
+#define _GNU_SOURCE
+#include "runner_int.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define SETTLE_SLICE_US 50000
+
+/* ---- thread-side helpers ------------------------------------------------ */
+
+void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason)
+{
+    if (catalog_run_set_state(r->cat, uuid, st, reason) != SL_OK) {
+        g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
+        return;
+    }
+    if (reason)
+        g_message("run %s: %s (%s)", uuid, catalog_state_name(st), reason);
+    else
+        g_message("run %s: %s", uuid, catalog_state_name(st));
+    g_mutex_lock(&r->mu);
+    if (r->cur && !strcmp(r->cur->uuid, uuid))
+        r->st.state = st;
+    g_mutex_unlock(&r->mu);
+    server_event_async(r->srv, uuid, proto_event_state(uuid, st, reason));
+}
+
+int runner_aborting(runner *r)
+{
+    g_mutex_lock(&r->mu);
+    int a = r->abort_current;
+    g_mutex_unlock(&r->mu);
+    return a;
+}
+
+void runner_note_camera(runner *r, int connected, const camera_info *info, const char *error)
+{
+    g_mutex_lock(&r->mu);
+    r->st.camera_connected = connected;
+    if (info)
+        r->st.camera = *info;
+    g_strlcpy(r->st.camera_error, error ? error : "", sizeof r->st.camera_error);
+    g_mutex_unlock(&r->mu);
+}
+
+void runner_note_progress(runner *r, int acquired)
+{
+    g_mutex_lock(&r->mu);
+    r->st.frames_acquired = acquired;
+    g_mutex_unlock(&r->mu);
+}
+
+static void note_stage(runner *r, const char *error)
+{
+    stage_wheel_status ws[STAGE_NWHEELS];
+    int ok = 1;
+    for (int w = 0; w < STAGE_NWHEELS && ok; w++)
+        ok = stage_status(r->stg, w, &ws[w]) == SL_OK;
+    g_mutex_lock(&r->mu);
+    r->st.stage_connected = stage_connected(r->stg);
+    if (ok) {
+        memcpy(r->st.wheels, ws, sizeof ws);
+        r->st.stage_known = 1;
+    }
+    g_strlcpy(r->st.stage_error, error ? error : "", sizeof r->st.stage_error);
+    g_mutex_unlock(&r->mu);
+}
+
+/* ---- moving ------------------------------------------------------------- */
+
+static int stage_ready(runner *r, sl_err *e)
+{
+    if (r->stg)
+        return SL_OK;
+    const config *c = r->cfg;
+    stage_config sc;
+    stage_config_defaults(&sc);
+    sc.backend = c->stage_backend;
+    sc.host = c->stage_host;
+    sc.port = c->stage_port;
+    sc.device = c->stage_device;
+    sc.baud = c->stage_baud;
+    sc.unit_id = c->stage_unit;
+    sc.response_timeout_ms = c->response_timeout_ms;
+    sc.call_timeout_ms = c->call_timeout_ms;
+    sc.move_timeout_ms = c->move_timeout_ms;
+    return stage_new(&r->stg, &sc, e);
+}
+
+/* Both wheels to the run's slots: home a wheel that is not homed, refuse
+ * a faulted one (an operator must look at it: `specklab stage reset`),
+ * start both moves, wait for both (bounded by move_timeout_ms), settle. */
+static int move_wheels(runner *r, const runner_spec *sp, char *reason, size_t rlen)
+{
+    sl_err e = {0};
+    stage_wheel_status ws;
+    const int slot[STAGE_NWHEELS] = {sp->screen_slot, sp->mask_slot};
+    int rc = stage_ready(r, &e), homing = 0;
+    if (rc != SL_OK) {
+        snprintf(reason, rlen, "stage: %s", e.msg);
+        return rc;
+    }
+    for (int w = 0; w < STAGE_NWHEELS && rc == SL_OK; w++) {
+        rc = stage_status(r->stg, w, &ws);
+        if (rc == SL_OK && ws.faulted) {
+            rc = SL_EDATA;
+            snprintf(reason, rlen, "stage %s: %s wheel faulted (%s) before the move; reset "
+                     "it", stage_label(r->stg), stage_wheel_name(w), ws.fault_text);
+            note_stage(r, reason);
+            return rc;
+        }
+        if (rc == SL_OK && !ws.homed) {
+            g_message("stage: homing the %s wheel", stage_wheel_name(w));
+            rc = stage_home(r->stg, w);
+            homing = 1;
+        }
+    }
+    if (rc == SL_OK && homing)
+        rc = stage_wait(r->stg, STAGE_WHEEL_ALL, r->cfg->move_timeout_ms);
+    for (int w = 0; w < STAGE_NWHEELS && rc == SL_OK; w++)
+        rc = stage_move(r->stg, w, slot[w]);
+    if (rc == SL_OK)
+        rc = stage_wait(r->stg, STAGE_WHEEL_ALL, r->cfg->move_timeout_ms);
+    if (rc != SL_OK) {
+        snprintf(reason, rlen, "%s", stage_errmsg(r->stg));
+        note_stage(r, reason);
+        return rc;
+    }
+    note_stage(r, NULL);
+    /* Let the bench settle (and the fake camera see the new beam: it polls
+     * the stage every 50 ms), checking for an abort meanwhile. */
+    for (gint64 t = 0; t < r->cfg->settle_ms * (gint64)1000 && !runner_aborting(r);
+         t += SETTLE_SLICE_US)
+        g_usleep(SETTLE_SLICE_US);
+    return SL_OK;
+}
+
+/* The outer extent of the run's pupil: the seeing estimator's D. */
+typedef struct pupil_find {
+    const char *name;
+    double extent_m;
+} pupil_find;
+
+static int pupil_match(const catalog_mask *m, void *user)
+{
+    pupil_find *f = user;
+    if (strcmp(m->name, f->name) != 0)
+        return 0;
+    if (m->kind == CATALOG_MASK_FULL) {
+        f->extent_m = m->diameter_m;
+        return 0;
+    }
+    double far = 0;
+    for (int i = 0; i < m->nholes; i++)
+        for (int j = i + 1; j < m->nholes; j++)
+            far = fmax(far, hypot(m->x_m[i] - m->x_m[j], m->y_m[i] - m->y_m[j]));
+    f->extent_m = far + m->diameter_m;
+    return 0;
+}
+
+static void do_run(runner *r, const runner_spec *sp)
+{
+    char reason[1024] = "";
+    double r0_m;
+    g_message("run %s: screen %s (slot %d), mask %s (slot %d), %d frames", sp->uuid,
+              sp->screen, sp->screen_slot, sp->mask, sp->mask_slot, sp->frames);
+    runner_set_state(r, sp->uuid, CATALOG_MOVING, NULL);
+    if (move_wheels(r, sp, reason, sizeof reason) != SL_OK) {
+        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
+        return;
+    }
+    if (runner_aborting(r)) {
+        g_mutex_lock(&r->mu);
+        snprintf(reason, sizeof reason, "%s", r->abort_reason);
+        g_mutex_unlock(&r->mu);
+        runner_set_state(r, sp->uuid, CATALOG_ABORTED, reason);
+        return;
+    }
+    pupil_find pf = {sp->mask, NAN};
+    catalog_mask_list(r->cat, pupil_match, &pf);
+    if (!(pf.extent_m > 0))
+        pf.extent_m = 1.1;   /* the built-in pupils' extent */
+    if (acquire_run(r, sp, pf.extent_m, reason, sizeof reason, &r0_m) == ACQ_COMPLETE) {
+        if (isfinite(r0_m))
+            g_message("run %s: r0 %.4f m (image motion)", sp->uuid, r0_m);
+        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL);
+    }
+}
+
+/* Answer the aborts that waited for the current run, with its end state. */
+static void answer_aborts(runner *r, const char *uuid)
+{
+    catalog_run run;
+    int have = catalog_run_get(r->cat, uuid, &run) == SL_OK;
+    g_mutex_lock(&r->mu);
+    for (guint i = 0; i < r->abort_reqs->len; i++) {
+        proto_req *q = &g_array_index(r->abort_reqs, proto_req, i);
+        char *line;
+        if (have && run.state == CATALOG_ABORTED) {
+            JsonBuilder *b = json_builder_new();
+            json_builder_begin_object(b);
+            proto_add_str(b, "run", uuid);
+            proto_add_str(b, "state", "aborted");
+            json_builder_end_object(b);
+            JsonNode *n = json_builder_get_root(b);
+            g_object_unref(b);
+            line = proto_reply_ok(q, n);
+        } else {
+            line = proto_reply_error(q, "conflict", "run %s ended %s before the abort took "
+                                     "effect", uuid,
+                                     have ? catalog_state_name(run.state) : "?");
+        }
+        server_complete_async(r->srv, q->tok, line);
+    }
+    g_array_set_size(r->abort_reqs, 0);
+    g_mutex_unlock(&r->mu);
+    if (have)
+        catalog_run_clear(&run);
+}
+
+static gpointer thread_main(gpointer data)
+{
+    runner *r = data;
+    sl_err e = {0};
+    camera_info info;
+    /* Know the camera before the first run (status, devices). */
+    if (camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address, &e) == SL_OK &&
+        camera_info_get(r->cam, &info) == SL_OK) {
+        runner_note_camera(r, 1, &info, NULL);
+        r->cam_fresh = 1;
+        g_message("camera %s: %s %s, serial %s", r->cfg->camera_address, info.vendor,
+                  info.model, info.serial);
+    } else {
+        runner_note_camera(r, 0, NULL, r->cam ? camera_errmsg(r->cam) : e.msg);
+        g_message("camera not available yet: %s", r->cam ? camera_errmsg(r->cam) : e.msg);
+        camera_close(r->cam);
+        r->cam = NULL;
+    }
+    for (;;) {
+        g_mutex_lock(&r->mu);
+        while (!r->stopping && g_queue_is_empty(&r->queue))
+            g_cond_wait(&r->cv, &r->mu);
+        runner_spec *sp = r->stopping ? NULL : g_queue_pop_head(&r->queue);
+        r->cur = sp;
+        r->abort_current = 0;
+        if (sp) {
+            snprintf(r->st.current, sizeof r->st.current, "%s", sp->uuid);
+            r->st.state = CATALOG_QUEUED;
+            r->st.frames_acquired = 0;
+            r->st.frames_requested = sp->frames;
+        }
+        g_mutex_unlock(&r->mu);
+        if (!sp)
+            break;
+        do_run(r, sp);
+        answer_aborts(r, sp->uuid);
+        g_mutex_lock(&r->mu);
+        r->cur = NULL;
+        r->st.current[0] = '\0';
+        g_mutex_unlock(&r->mu);
+        g_free(sp);
+    }
+    runner_spec *sp;
+    while ((sp = g_queue_pop_head(&r->queue))) {
+        runner_set_state(r, sp->uuid, CATALOG_ABORTED, "daemon stopping");
+        g_free(sp);
+    }
+    return NULL;
+}
+
+/* ---- main-thread API ----------------------------------------------------- */
+
+int runner_new(runner **out, const config *cfg, server *srv, worker *wk, sl_err *err)
+{
+    runner *r = g_new0(runner, 1);
+    int rc = catalog_open(&r->cat, cfg->catalog, err);
+    if (rc != SL_OK) {
+        g_free(r);
+        *out = NULL;
+        return rc;
+    }
+    r->cfg = cfg;
+    r->srv = srv;
+    r->wk = wk;
+    g_mutex_init(&r->mu);
+    g_cond_init(&r->cv);
+    g_queue_init(&r->queue);
+    r->abort_reqs = g_array_new(FALSE, FALSE, sizeof(proto_req));
+    r->th = g_thread_new("acquire", thread_main, r);
+    *out = r;
+    return SL_OK;
+}
+
+void runner_enqueue(runner *r, const runner_spec *spec, int *ahead,
+                    char behind[CATALOG_UUID_LEN + 1])
+{
+    runner_spec *sp = g_memdup2(spec, sizeof *spec);
+    g_mutex_lock(&r->mu);
+    runner_spec *last = g_queue_peek_tail(&r->queue);
+    if (!last)
+        last = r->cur;
+    *ahead = (int)g_queue_get_length(&r->queue) + (r->cur != NULL);
+    snprintf(behind, CATALOG_UUID_LEN + 1, "%s", last ? last->uuid : "");
+    g_queue_push_tail(&r->queue, sp);
+    g_cond_signal(&r->cv);
+    g_mutex_unlock(&r->mu);
+}
+
+int runner_abort(runner *r, const char *uuid, const proto_req *req)
+{
+    int what = RUNNER_NOT_HERE;
+    g_mutex_lock(&r->mu);
+    if (r->cur && !strcmp(r->cur->uuid, uuid)) {
+        r->abort_current = 1;
+        snprintf(r->abort_reason, sizeof r->abort_reason, "aborted by request");
+        g_array_append_val(r->abort_reqs, *req);
+        what = RUNNER_ABORTING;
+    }
+    for (GList *l = r->queue.head; l && what == RUNNER_NOT_HERE; l = l->next)
+        if (!strcmp(((runner_spec *)l->data)->uuid, uuid)) {
+            g_free(l->data);
+            g_queue_delete_link(&r->queue, l);
+            what = RUNNER_DEQUEUED;
+        }
+    g_mutex_unlock(&r->mu);
+    return what;
+}
+
+void runner_status_get(runner *r, runner_status *out)
+{
+    g_mutex_lock(&r->mu);
+    *out = r->st;
+    out->queue = g_new0(char *, g_queue_get_length(&r->queue) + 1);
+    int i = 0;
+    for (GList *l = r->queue.head; l; l = l->next)
+        out->queue[i++] = g_strdup(((runner_spec *)l->data)->uuid);
+    g_mutex_unlock(&r->mu);
+}
+
+void runner_stop(runner *r)
+{
+    if (!r || !r->th)
+        return;
+    g_mutex_lock(&r->mu);
+    r->stopping = 1;
+    if (r->cur) {
+        r->abort_current = 1;
+        snprintf(r->abort_reason, sizeof r->abort_reason, "daemon stopping");
+    }
+    g_cond_signal(&r->cv);
+    g_mutex_unlock(&r->mu);
+    g_thread_join(r->th);
+    r->th = NULL;
+}
+
+void runner_free(runner *r)
+{
+    if (!r)
+        return;
+    runner_stop(r);
+    camera_close(r->cam);
+    stage_free(r->stg);
+    catalog_close(r->cat);
+    g_queue_clear_full(&r->queue, g_free);
+    g_array_free(r->abort_reqs, TRUE);
+    g_mutex_clear(&r->mu);
+    g_cond_clear(&r->cv);
+    g_free(r);
+}

@@ -1,0 +1,52 @@
+/* runner_int.h - what runner.c (queue, thread, stage, states) and
+ * acquire.c (camera, cube, files) share.  Not for other modules. */
+#ifndef SL_DAEMON_RUNNER_INT_H
+#define SL_DAEMON_RUNNER_INT_H
+
+#include <glib.h>
+
+#include "runner.h"
+
+struct runner {
+    const config *cfg;
+    server *srv;
+    worker *wk;
+    /* Thread-owned: only the acquisition thread touches these. */
+    catalog *cat;
+    stage *stg;
+    camera *cam;
+    int cam_fresh;             /* opened but never streamed: prime it */
+    GThread *th;
+    /* Shared, under mu. */
+    GMutex mu;
+    GCond cv;
+    GQueue queue;              /* runner_spec* */
+    runner_spec *cur;          /* the run in hand, NULL when idle */
+    int stopping;
+    int abort_current;         /* set by abort / stop, read by the thread */
+    char abort_reason[64];
+    GArray *abort_reqs;        /* proto_req awaiting the current run's end */
+    runner_status st;          /* queue field unused here */
+};
+
+/* How an acquisition ended. */
+typedef enum acq_end {
+    ACQ_COMPLETE = 0,
+    ACQ_ABORTED,
+    ACQ_FAILED
+} acq_end;
+
+/* One run's acquisition: camera configured, frames to the .part cube,
+ * the cube finished on disk and catalogued.  On return the run is in its
+ * final acquisition state in the catalogue (stored, failed or aborted)
+ * and *r0_m holds the run's seeing (NaN when not measured). */
+acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
+                    size_t reason_len, double *r0_m);
+
+/* Thread-side helpers from runner.c. */
+void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason);
+int runner_aborting(runner *r);
+void runner_note_camera(runner *r, int connected, const camera_info *info, const char *error);
+void runner_note_progress(runner *r, int acquired);
+
+#endif

@@ -1,0 +1,355 @@
+/* worker.c - the reconstruction thread; see worker.h. */
+#define _GNU_SOURCE
+#include "worker.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <glib.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cubefile.h"
+#include "metrics.h"
+#include "pipeline.h"
+#include "preview.h"
+#include "wisdom.h"
+
+typedef struct wjob {
+    char uuid[CATALOG_UUID_LEN + 1];
+    char method[16];
+    int projections;
+    int automatic;
+    proto_req req;
+} wjob;
+
+struct worker {
+    const config *cfg;
+    server *srv;
+    catalog *cat;      /* the worker thread's own handle */
+    GThread *th;
+    GMutex mu;         /* guards q, stopping, current */
+    GCond cv;
+    GQueue q;
+    int stopping;
+    char current[CATALOG_UUID_LEN + 1];
+};
+
+static void emit_state(worker *w, const char *uuid, catalog_state st, const char *reason)
+{
+    server_event_async(w->srv, uuid, proto_event_state(uuid, st, reason));
+}
+
+/* Move the run to st and say so; a refusal is logged (it means another
+ * process changed the run, which the daemon does not expect). */
+static void set_state(worker *w, const char *uuid, catalog_state st, const char *reason)
+{
+    if (catalog_run_set_state(w->cat, uuid, st, reason) != SL_OK) {
+        g_warning("run %s: %s", uuid, catalog_errmsg(w->cat));
+        return;
+    }
+    emit_state(w, uuid, st, reason);
+}
+
+/* DATA/recon/<uuid>-<method>[-N].fits, created empty (O_EXCL) so two jobs
+ * never pick the same name; the .png shares the stem. */
+static int output_paths(worker *w, const wjob *j, char **fits, char **png, sl_err *e)
+{
+    char *dir = g_build_filename(w->cfg->data_dir, "recon", NULL);
+    int rc = SL_EIO;
+    for (int n = 1; n < 10000 && rc != SL_OK; n++) {
+        char *stem = n == 1 ? g_strdup_printf("%s-%s", j->uuid, j->method)
+                            : g_strdup_printf("%s-%s-%d", j->uuid, j->method, n);
+        char *f = g_strdup_printf("%s/%s.fits", dir, stem);
+        int fd = open(f, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+        if (fd >= 0) {
+            close(fd);
+            *fits = f;
+            *png = g_strdup_printf("%s/%s.png", dir, stem);
+            rc = SL_OK;
+        } else {
+            g_free(f);
+            if (errno != EEXIST) {
+                sl_seterr(e, SL_EIO, "%s/%s.fits: %s", dir, stem, g_strerror(errno));
+                g_free(stem);
+                break;
+            }
+        }
+        g_free(stem);
+    }
+    if (rc != SL_OK && !e->msg[0])
+        sl_seterr(e, SL_EIO, "%s: no free output name for run %s", dir, j->uuid);
+    g_free(dir);
+    return rc;
+}
+
+static char *json_text(JsonBuilder *b)
+{
+    JsonNode *n = json_builder_get_root(b);
+    g_object_unref(b);
+    return proto_take_string(n);
+}
+
+/* Reconstruct, write, measure, catalogue.  On success *out holds the new
+ * row (strings owned by the caller's buffers below). */
+typedef struct outputs {
+    char *fits, *png, *params, *quality;
+} outputs;
+
+static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
+                       outputs *o, sl_err *e)
+{
+    pipeline_opts po;
+    pipeline_result res = {0};
+    binary_result br;
+    int rc;
+    pipeline_opts_defaults(&po);
+    if ((rc = pipeline_method_parse(j->method, &po.method)) != SL_OK)
+        return sl_seterr(e, rc, "unknown method '%s'", j->method);
+    po.nangles = j->projections > 0 ? j->projections : w->cfg->projections;
+    /* MEASURE plans run several times faster than ESTIMATE ones but cost
+     * ~1 s per new size to time: the wisdom file (loaded when the thread
+     * starts, saved after each job) pays that once per size and machine. */
+    po.fftw_measure = w->cfg->fftw_measure;
+    catalog_recon_init(rec);
+    rec->started_ms = catalog_now_ms();
+    if ((rc = pipeline_run(&cube, 1, &po, &res, e)) != SL_OK)
+        return rc;
+    if ((rc = output_paths(w, j, &o->fits, &o->png, e)) != SL_OK)
+        goto clear_result;
+    seq img = {res.width, res.height, 1, res.image};
+    if ((rc = cube_write(o->fits, &img, &res.meta, e)) != SL_OK ||
+        (rc = preview_write_png(o->png, res.image, res.width, res.height, PREVIEW_ASINH, e)) !=
+            SL_OK)
+        goto clear_result;
+    int found = metrics_binary(res.image, res.width, res.height, &br) == SL_OK;
+    double scale = isfinite(res.plate_scale_arcsec) ? res.plate_scale_arcsec
+                                                    : w->cfg->plate_scale_arcsec;
+    if (found) {
+        rec->sep_px = br.sep_px, rec->sep_err_px = br.sep_err_px;
+        rec->pa_deg = br.pa_deg, rec->pa_err_deg = br.pa_err_deg;
+        rec->dm_mag = br.dm_mag, rec->dm_err_mag = br.dm_err_mag;
+        rec->sep_arcsec = br.sep_px * scale;
+    }
+    JsonBuilder *b = json_builder_new();
+    json_builder_begin_object(b);
+    proto_add_str(b, "method", j->method);
+    if (po.method != PIPE_DIRECT)   /* pipeline.h: 0 means 180 */
+        proto_add_int(b, "projections", po.nangles > 0 ? po.nangles : 180);
+    proto_add_bool(b, "prep", po.prep);
+    proto_add_str(b, "fftw", po.fftw_measure ? "measure" : "estimate");
+    json_builder_end_object(b);
+    o->params = json_text(b);
+    b = json_builder_new();
+    json_builder_begin_object(b);
+    proto_add_int(b, "nframes", res.nframes);
+    proto_add_int(b, "width", res.width);
+    proto_add_int(b, "height", res.height);
+    proto_add_dbl(b, "plate_scale_arcsec", scale);
+    proto_add_bool(b, "binary_found", found);
+    if (found) {
+        proto_add_dbl(b, "flux_ratio", br.flux_ratio);
+        proto_add_dbl(b, "flux_ratio_err", br.flux_ratio_err);
+        proto_add_dbl(b, "noise", br.noise);
+    }
+    json_builder_end_object(b);
+    o->quality = json_text(b);
+    rec->run_uuid = j->uuid;
+    rec->method = j->method;
+    rec->params_json = o->params;
+    rec->elapsed_s = res.elapsed_s;
+    rec->output_fits = o->fits;
+    rec->output_png = o->png;
+    rec->quality_json = o->quality;
+    if ((rc = catalog_recon_insert(w->cat, rec, &rec->id)) != SL_OK)
+        sl_seterr(e, rc, "%s", catalog_errmsg(w->cat));
+clear_result:
+    if (rc != SL_OK && o->fits) {   /* no row: leave no orphan files */
+        unlink(o->fits);
+        unlink(o->png);
+    }
+    pipeline_result_clear(&res);
+    return rc;
+}
+
+static void run_job(worker *w, const wjob *j)
+{
+    catalog_run r;
+    sl_err e = {0};
+    outputs o = {0};
+    catalog_recon rec;
+    int rc = catalog_run_get(w->cat, j->uuid, &r);
+    if (rc != SL_OK) {
+        sl_seterr(&e, rc, "%s", catalog_errmsg(w->cat));
+        goto reply;
+    }
+    if (j->automatic && !strcmp(j->method, "none")) {
+        set_state(w, j->uuid, CATALOG_DONE, NULL);
+        goto clear_run;
+    }
+    if (!r.file_path || !cubefile_under(w->cfg->data_dir, r.file_path)) {
+        rc = sl_seterr(&e, SL_EINVAL, "run %s has no cube under the data directory %s",
+                       j->uuid, w->cfg->data_dir);
+    } else {
+        if (j->automatic)
+            set_state(w, j->uuid, CATALOG_RECONSTRUCTING, NULL);
+        g_message("run %s: reconstructing (%s)", j->uuid, j->method);
+        rc = reconstruct(w, j, r.file_path, &rec, &o, &e);
+    }
+    if (rc == SL_OK) {
+        server_event_async(w->srv, j->uuid, proto_event_recon(j->uuid, proto_recon_node(&rec)));
+        g_message("run %s: %s done in %.2f s: sep %.3f px, PA %.2f deg, dm %.2f", j->uuid,
+                  j->method, rec.elapsed_s, rec.sep_px, rec.pa_deg, rec.dm_mag);
+    } else {
+        g_warning("run %s: reconstruction failed: %s", j->uuid, e.msg);
+    }
+    if (j->automatic) {
+        char *why = rc == SL_OK ? NULL : g_strdup_printf("reconstruction failed: %s", e.msg);
+        set_state(w, j->uuid, CATALOG_DONE, why);
+        g_free(why);
+    }
+clear_run:
+    catalog_run_clear(&r);
+reply:
+    if (!j->automatic) {
+        char *line;
+        if (rc == SL_OK) {
+            JsonBuilder *b = json_builder_new();
+            json_builder_begin_object(b);
+            proto_add_str(b, "run", j->uuid);
+            json_builder_set_member_name(b, "reconstruction");
+            json_builder_add_value(b, proto_recon_node(&rec));
+            json_builder_end_object(b);
+            JsonNode *n = json_builder_get_root(b);
+            g_object_unref(b);
+            line = proto_reply_ok(&j->req, n);
+        } else {
+            line = proto_reply_error(&j->req, "internal", "reconstruction of run %s failed: %s",
+                                     j->uuid, e.msg);
+        }
+        server_complete_async(w->srv, j->req.tok, line);
+    }
+    g_free(o.fits);
+    g_free(o.png);
+    g_free(o.params);
+    g_free(o.quality);
+}
+
+/* DATA_DIR/fftw-wisdom: FFTW's planner state is global, so only this
+ * thread (the daemon's one planner) imports and exports it. */
+static void wisdom(worker *w, int save)
+{
+    sl_err e = {0};
+    if (!w->cfg->fftw_measure)
+        return;
+    char *path = g_build_filename(w->cfg->data_dir, "fftw-wisdom", NULL);
+    if ((save ? wisdom_save(path, &e) : wisdom_load(path, NULL, &e)) != SL_OK)
+        g_warning("%s", e.msg);
+    g_free(path);
+}
+
+static gpointer thread_main(gpointer data)
+{
+    worker *w = data;
+    wisdom(w, 0);
+    for (;;) {
+        g_mutex_lock(&w->mu);
+        while (!w->stopping && g_queue_is_empty(&w->q))
+            g_cond_wait(&w->cv, &w->mu);
+        wjob *j = w->stopping ? NULL : g_queue_pop_head(&w->q);
+        if (j)
+            memcpy(w->current, j->uuid, sizeof w->current);
+        g_mutex_unlock(&w->mu);
+        if (!j)
+            break;
+        run_job(w, j);
+        wisdom(w, 1);
+        g_free(j);
+        g_mutex_lock(&w->mu);
+        w->current[0] = '\0';
+        g_mutex_unlock(&w->mu);
+    }
+    /* Stopping: what is still queued is settled, not run. */
+    wjob *j;
+    while ((j = g_queue_pop_head(&w->q))) {
+        if (j->automatic)
+            set_state(w, j->uuid, CATALOG_DONE, "reconstruction not run: daemon stopping");
+        else
+            server_complete_async(w->srv, j->req.tok,
+                                  proto_reply_error(&j->req, "internal",
+                                                    "daemon stopping: reconstruction of "
+                                                    "run %s not run", j->uuid));
+        g_free(j);
+    }
+    return NULL;
+}
+
+int worker_new(worker **out, const config *cfg, server *srv, sl_err *err)
+{
+    worker *w = g_new0(worker, 1);
+    int rc = catalog_open(&w->cat, cfg->catalog, err);
+    if (rc != SL_OK) {
+        g_free(w);
+        *out = NULL;
+        return rc;
+    }
+    w->cfg = cfg;
+    w->srv = srv;
+    g_mutex_init(&w->mu);
+    g_cond_init(&w->cv);
+    g_queue_init(&w->q);
+    w->th = g_thread_new("recon", thread_main, w);
+    *out = w;
+    return SL_OK;
+}
+
+int worker_submit(worker *w, const char *uuid, const char *method, int projections,
+                  const proto_req *req)
+{
+    wjob *j = g_new0(wjob, 1);
+    snprintf(j->uuid, sizeof j->uuid, "%s", uuid);
+    snprintf(j->method, sizeof j->method, "%s", method);
+    j->projections = projections;
+    j->automatic = req == NULL;
+    if (req)
+        j->req = *req;
+    g_mutex_lock(&w->mu);
+    int ahead = (int)g_queue_get_length(&w->q) + (w->current[0] != '\0');
+    g_queue_push_tail(&w->q, j);
+    g_cond_signal(&w->cv);
+    g_mutex_unlock(&w->mu);
+    return ahead;
+}
+
+void worker_status(worker *w, char current[CATALOG_UUID_LEN + 1], int *queued)
+{
+    g_mutex_lock(&w->mu);
+    memcpy(current, w->current, CATALOG_UUID_LEN + 1);
+    *queued = (int)g_queue_get_length(&w->q);
+    g_mutex_unlock(&w->mu);
+}
+
+void worker_stop(worker *w)
+{
+    if (!w || !w->th)
+        return;
+    g_mutex_lock(&w->mu);
+    w->stopping = 1;
+    g_cond_signal(&w->cv);
+    g_mutex_unlock(&w->mu);
+    g_thread_join(w->th);
+    w->th = NULL;
+}
+
+void worker_free(worker *w)
+{
+    if (!w)
+        return;
+    worker_stop(w);
+    catalog_close(w->cat);
+    g_queue_clear(&w->q);
+    g_mutex_clear(&w->mu);
+    g_cond_clear(&w->cv);
+    g_free(w);
+}

@@ -1,0 +1,554 @@
+/* daemon_fx.h - the fixture of tests/integration/test_daemon*.c: a bench
+ * (fake stage, fake camera, specklabd) in a private network namespace,
+ * and a small json-glib client of daemon/PROTOCOL.md.
+ *
+ * Namespaces: GVCP's port 3956 is fixed, so each test body runs in a
+ * forked child that unshares its network namespace (CLONE_NEWNET; with
+ * CLONE_NEWUSER when not root) and brings its loopback up; everything it
+ * starts shares that private loopback and dies with it (PR_SET_PDEATHSIG).
+ * The parent reads the child's verdict through a pipe with a deadline.
+ * GLib is used only in the children.
+ *
+ * Binaries: $SL_BIN_DIR (else $SL_BIN, else BUILD/../bin next to this test,
+ * else ./bin) must hold specklabd, specklab-fake-stage and
+ * specklab-fake-camera.  Every start is synchronised on the program's
+ * READY line, with a deadline; nothing sleeps as synchronisation.
+ *
+ * Static functions: include once per test binary.
+ */
+#ifndef SL_DAEMON_FX_H
+#define SL_DAEMON_FX_H
+
+#define _GNU_SOURCE
+#include <errno.h>
+#include <fcntl.h>
+#include <ftw.h>
+#include <json-glib/json-glib.h>
+#include <libgen.h>
+#include <limits.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sched.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/ioctl.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <fitsio.h>
+
+#include "catalog.h"
+#include "tcheck.h"
+
+static inline double fx_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static inline void fx_nap_ms(int ms)   /* between polls of a bounded wait only */
+{
+    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* ---- namespaces ------------------------------------------------------------ */
+
+static inline int fx_write_file(const char *path, const char *text)
+{
+    int fd = open(path, O_WRONLY);
+    if (fd < 0)
+        return -1;
+    ssize_t w = write(fd, text, strlen(text));
+    close(fd);
+    return w == (ssize_t)strlen(text) ? 0 : -1;
+}
+
+static inline int fx_enter_netns(char *why, size_t n)
+{
+    uid_t uid = getuid();
+    gid_t gid = getgid();
+    if (unshare(CLONE_NEWNET) != 0) {
+        char map[64];
+        if (unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0) {
+            snprintf(why, n, "unshare: %s", strerror(errno));
+            return -1;
+        }
+        fx_write_file("/proc/self/setgroups", "deny");
+        snprintf(map, sizeof map, "0 %d 1", (int)uid);
+        fx_write_file("/proc/self/uid_map", map);
+        snprintf(map, sizeof map, "0 %d 1", (int)gid);
+        fx_write_file("/proc/self/gid_map", map);
+    }
+    struct ifreq ifr = {0};
+    int s = socket(AF_INET, SOCK_DGRAM, 0);
+    snprintf(ifr.ifr_name, sizeof ifr.ifr_name, "lo");
+    int rc = s < 0 || ioctl(s, SIOCGIFFLAGS, &ifr) != 0 ? -1 : 0;
+    ifr.ifr_flags |= IFF_UP | IFF_RUNNING;
+    if (rc == 0 && ioctl(s, SIOCSIFFLAGS, &ifr) != 0)
+        rc = -1;
+    if (s >= 0)
+        close(s);
+    if (rc)
+        snprintf(why, n, "bringing lo up: %s", strerror(errno));
+    return rc;
+}
+
+/* Run body in a forked child in a fresh network namespace; its verdict
+ * comes back through a pipe within limit_s.  Without namespaces the test
+ * is skipped (the fixed GVCP port would collide with other cameras). */
+static inline void fx_in_netns(tc *t, void (*body)(tc *), int limit_s)
+{
+    int p[2];
+    CHECK(pipe(p) == 0, "pipe: %s", strerror(errno));
+    fflush(stdout);
+    fflush(stderr);
+    pid_t pid = fork();
+    CHECK(pid >= 0, "fork: %s", strerror(errno));
+    if (pid == 0) {
+        tc ct = {0};
+        char why[256];
+        close(p[0]);
+        if (fx_enter_netns(why, sizeof why) != 0)
+            tc_note(&ct, 1, __FILE__, __LINE__, "", "no private network namespace: %s", why);
+        else
+            body(&ct);
+        fflush(stdout);
+        ssize_t w = write(p[1], &ct, sizeof ct);
+        exit(w == (ssize_t)sizeof ct ? 0 : 3);
+    }
+    close(p[1]);
+    tc ct;
+    size_t got = 0;
+    double end = fx_now() + limit_s;
+    while (got < sizeof ct && fx_now() < end) {
+        struct pollfd pf = {p[0], POLLIN, 0};
+        if (poll(&pf, 1, 200) <= 0)
+            continue;
+        ssize_t r = read(p[0], (char *)&ct + got, sizeof ct - got);
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+    }
+    close(p[0]);
+    if (got < sizeof ct)
+        kill(pid, SIGKILL);
+    int st = 0;
+    waitpid(pid, &st, 0);
+    CHECK(got == sizeof ct, "test child gave no verdict within %d s (%s %d)", limit_s,
+          WIFSIGNALED(st) ? "signal" : "exit", WIFSIGNALED(st) ? WTERMSIG(st) : WEXITSTATUS(st));
+    *t = ct;
+    if (!t->failed && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        t->failed = 1;
+        snprintf(t->msg, sizeof t->msg, "test child %s %d after its verdict (a leak?)",
+                 WIFSIGNALED(st) ? "died of signal" : "exited",
+                 WIFSIGNALED(st) ? WTERMSIG(st) : WEXITSTATUS(st));
+    }
+}
+
+/* ---- processes --------------------------------------------------------------- */
+
+static inline void fx_bin(char *out, size_t n, const char *name)
+{
+    const char *env = getenv("SL_BIN_DIR");
+    if (!env || !*env)
+        env = getenv("SL_BIN");
+    if (env && *env) {
+        snprintf(out, n, "%s/%s", env, name);
+        return;
+    }
+    char exe[PATH_MAX] = "";
+    ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    exe[len > 0 ? len : 0] = 0;
+    /* BUILD/tests/test_x -> BUILD/bin (make asan), else ./bin */
+    snprintf(out, n, "%s/bin/%s", dirname(dirname(exe)), name);
+    if (access(out, X_OK) != 0)
+        snprintf(out, n, "bin/%s", name);
+}
+
+typedef struct fx_proc {
+    pid_t pid;
+    int out;      /* its stdout, -1 when none */
+} fx_proc;
+
+/* Start argv[0] with stdout on a pipe and stderr appended to errlog
+ * (NULL: /dev/null).  pre(arg) runs in the child before exec. */
+static inline int fx_spawn(fx_proc *p, char *const argv[], const char *errlog,
+                    void (*pre)(void *), void *arg)
+{
+    int fd[2];
+    p->pid = -1;
+    p->out = -1;
+    if (pipe2(fd, O_CLOEXEC) != 0)
+        return -1;
+    fflush(stdout);
+    fflush(stderr);
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL);
+        dup2(fd[1], 1);
+        int e = open(errlog ? errlog : "/dev/null", O_WRONLY | O_CREAT | O_APPEND, 0644);
+        if (e >= 0)
+            dup2(e, 2);
+        if (pre)
+            pre(arg);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    close(fd[1]);
+    p->pid = pid;
+    p->out = fd[0];
+    return 0;
+}
+
+/* Read stdout until a line starting with READY (copied to line). */
+static inline int fx_wait_ready(fx_proc *p, char *line, size_t n, double limit_s)
+{
+    size_t len = 0;
+    double end = fx_now() + limit_s;
+    while (fx_now() < end) {
+        struct pollfd pf = {p->out, POLLIN, 0};
+        if (poll(&pf, 1, 100) <= 0)
+            continue;
+        if (len + 1 >= n || read(p->out, line + len, 1) != 1)
+            return -1;   /* exited before READY */
+        if (line[len] == '\n') {
+            line[len] = 0;
+            if (strncmp(line, "READY", 5) == 0)
+                return 0;
+            len = 0;
+        } else {
+            len++;
+        }
+    }
+    return -1;
+}
+
+/* Signal and reap within limit_s (then SIGKILL); the exit status or -1. */
+static inline int fx_stop(fx_proc *p, int sig, double limit_s)
+{
+    int st = 0, rc = -1;
+    if (p->pid <= 0)
+        return -1;
+    kill(p->pid, sig);
+    double end = fx_now() + limit_s;
+    pid_t w;
+    while ((w = waitpid(p->pid, &st, WNOHANG)) == 0 && fx_now() < end)
+        fx_nap_ms(10);
+    if (w == 0) {
+        kill(p->pid, SIGKILL);
+        waitpid(p->pid, &st, 0);
+    } else if (w > 0 && WIFEXITED(st)) {
+        rc = WEXITSTATUS(st);
+    }
+    if (p->out >= 0)
+        close(p->out);
+    p->pid = -1;
+    p->out = -1;
+    return rc;
+}
+
+static inline int fx_alive(const fx_proc *p)
+{
+    int st;
+    return p->pid > 0 && waitpid(p->pid, &st, WNOHANG) == 0;
+}
+
+/* ---- the bench ----------------------------------------------------------------- */
+
+typedef struct bench {
+    char dir[128];
+    char data[200], sock[200], conf[200], dlog[200], clog[200];
+    char cam_size[16];
+    fx_proc stage, cam, daemon;
+    int port;
+    void (*daemon_pre)(void *);   /* e.g. limits, before exec */
+    void *daemon_pre_arg;
+    GPtrArray *keep;              /* JsonNode*, released by bench_down */
+    GPtrArray *clients;           /* dc*, closed by bench_down */
+} bench;
+
+static inline int fx_rm(const char *path, const struct stat *sb, int flag, struct FTW *ftw)
+{
+    (void)sb, (void)flag, (void)ftw;
+    return remove(path);
+}
+
+static inline int bench_init(bench *b)
+{
+    const char *tmp = getenv("TMPDIR");
+    memset(b, 0, sizeof *b);
+    b->stage.pid = b->cam.pid = b->daemon.pid = -1;
+    snprintf(b->dir, sizeof b->dir, "%s/sl_daemon.XXXXXX", tmp && *tmp ? tmp : "/tmp");
+    if (!mkdtemp(b->dir))
+        return -1;
+    snprintf(b->data, sizeof b->data, "%s/var", b->dir);
+    snprintf(b->sock, sizeof b->sock, "%s/var/specklabd.sock", b->dir);
+    snprintf(b->conf, sizeof b->conf, "%s/specklabd.conf", b->dir);
+    snprintf(b->dlog, sizeof b->dlog, "%s/specklabd.log", b->dir);
+    snprintf(b->clog, sizeof b->clog, "%s/camera.log", b->dir);
+    snprintf(b->cam_size, sizeof b->cam_size, "64");
+    b->keep = g_ptr_array_new_with_free_func((GDestroyNotify)json_node_unref);
+    b->clients = g_ptr_array_new();
+    return 0;
+}
+
+/* extra: further fake-stage flags, NULL-terminated. */
+static inline int bench_start_stage(bench *b, const char *const *extra)
+{
+    char bin[PATH_MAX], line[128];
+    char *argv[24] = {bin, "--port", "0", "--step-ms", "20"};
+    int n = 5;
+    for (int i = 0; extra && extra[i] && n < 22; i++)
+        argv[n++] = (char *)extra[i];
+    argv[n] = NULL;
+    fx_bin(bin, sizeof bin, "specklab-fake-stage");
+    if (fx_spawn(&b->stage, argv, NULL, NULL, NULL) != 0 ||
+        fx_wait_ready(&b->stage, line, sizeof line, 10) != 0 ||
+        sscanf(line, "READY port=%d", &b->port) != 1)
+        return -1;
+    return 0;
+}
+
+static inline int bench_start_camera(bench *b)
+{
+    char bin[PATH_MAX], line[256], stage[64];
+    snprintf(stage, sizeof stage, "127.0.0.1:%d", b->port);
+    char *argv[] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
+                    "--seed", "5", "-q", NULL};
+    fx_bin(bin, sizeof bin, "specklab-fake-camera");
+    if (fx_spawn(&b->cam, argv, b->clog, NULL, NULL) != 0 ||
+        fx_wait_ready(&b->cam, line, sizeof line, 20) != 0)
+        return -1;
+    return 0;
+}
+
+/* The configuration: the bench's stage port, data under the temporary
+ * directory, 100 fps, plus extra text (whole "[group]\nkey=value" lines,
+ * later keys win). */
+static inline int bench_write_config(bench *b, const char *extra)
+{
+    FILE *f = fopen(b->conf, "w");
+    if (!f)
+        return -1;
+    fprintf(f, "[camera]\nframe_rate_hz=100\nlost_timeout_s=2\n"
+               "[stage]\naddress=127.0.0.1:%d\nsettle_ms=100\nmove_timeout_ms=5000\n"
+               "[paths]\ndata_dir=%s\n[daemon]\nsocket=%s\n%s\n",
+            b->port, b->data, b->sock, extra ? extra : "");
+    return fclose(f) == 0 ? 0 : -1;
+}
+
+static inline int bench_start_daemon(bench *b)
+{
+    char bin[PATH_MAX], line[512];
+    char *argv[] = {bin, "--config", b->conf, "--foreground", NULL};
+    fx_bin(bin, sizeof bin, "specklabd");
+    if (fx_spawn(&b->daemon, argv, b->dlog, b->daemon_pre, b->daemon_pre_arg) != 0 ||
+        fx_wait_ready(&b->daemon, line, sizeof line, 20) != 0)
+        return -1;
+    return 0;
+}
+
+/* Stage, camera, config (extra), daemon. */
+static inline int bench_up(bench *b, const char *const *stage_extra, const char *conf_extra)
+{
+    return bench_init(b) || bench_start_stage(b, stage_extra) || bench_start_camera(b) ||
+                   bench_write_config(b, conf_extra) || bench_start_daemon(b)
+               ? -1
+               : 0;
+}
+
+/* Print the daemon's log (on a failure, to see why). */
+static inline void bench_dump_log(const bench *b)
+{
+    FILE *f = fopen(b->dlog, "r");
+    char line[1024];
+    fprintf(stderr, "---- %s\n", b->dlog);
+    while (f && fgets(line, sizeof line, f))
+        fputs(line, stderr);
+    if (f)
+        fclose(f);
+}
+
+static inline void fx_bench_release(bench *b);
+
+static inline void bench_down(bench *b, int failed)
+{
+    if (failed)
+        bench_dump_log(b);
+    fx_stop(&b->daemon, SIGTERM, 10);
+    fx_stop(&b->cam, SIGTERM, 5);
+    fx_stop(&b->stage, SIGTERM, 5);
+    fx_bench_release(b);
+    if (b->dir[0] && !getenv("SL_KEEP_TMP"))
+        nftw(b->dir, fx_rm, 16, FTW_DEPTH | FTW_PHYS);
+}
+
+/* ---- files and catalogue, checked independently of the daemon -------------- */
+
+/* Open a cube as cfitsio sees it: NAXIS3, every pixel read (a truncated
+ * file fails), and the FRAMES table's rows (-1 when absent). */
+static inline int fx_fits(const char *path, long *naxis3, long *table_rows, char *err, size_t n)
+{
+    fitsfile *f = NULL;
+    int s = 0, naxis = 0;
+    long ax[3] = {0, 0, 0};
+    *naxis3 = *table_rows = -1;
+    fits_open_diskfile(&f, path, READONLY, &s);
+    fits_get_img_dim(f, &naxis, &s);
+    fits_get_img_size(f, 3, ax, &s);
+    if (!s && naxis == 3) {
+        *naxis3 = ax[2];
+        long npx = ax[0] * ax[1] * ax[2];
+        float *buf = g_new(float, npx > 0 ? npx : 1);
+        int any = 0;
+        if (npx > 0)
+            fits_read_img(f, TFLOAT, 1, npx, NULL, buf, &any, &s);
+        g_free(buf);
+    }
+    if (!s) {
+        int s2 = 0;
+        if (fits_movnam_hdu(f, BINARY_TBL, "FRAMES", 0, &s2) == 0)
+            fits_get_num_rows(f, table_rows, &s2);
+    }
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, &s2);
+    }
+    if (s || naxis != 3) {
+        char text[FLEN_STATUS] = "";
+        fits_get_errstatus(s, text);
+        snprintf(err, n, "%s: %s (naxis %d)", path, s ? text : "not a cube", naxis);
+        return -1;
+    }
+    return 0;
+}
+
+static inline int fx_sha256(const char *path, char hex[65])
+{
+    gchar *data = NULL;
+    gsize len = 0;
+    if (!g_file_get_contents(path, &data, &len, NULL))
+        return -1;
+    gchar *h = g_compute_checksum_for_data(G_CHECKSUM_SHA256, (const guchar *)data, len);
+    snprintf(hex, 65, "%s", h);
+    g_free(h);
+    g_free(data);
+    return 0;
+}
+
+/* The run as the catalogue file says, through a handle of the test's own,
+ * after PRAGMA integrity_check.  0 or -1 with err. */
+static inline int fx_catalog_run(const bench *b, const char *uuid, catalog_run *out, char *err,
+                          size_t n)
+{
+    char path[300];
+    catalog *c = NULL;
+    sl_err e = {0};
+    snprintf(path, sizeof path, "%s/specklab.db", b->data);
+    int rc = catalog_open(&c, path, &e);
+    if (rc != SL_OK)
+        snprintf(err, n, "catalog_open: %.400s", e.msg);
+    else if ((rc = catalog_integrity_check(c)) != SL_OK)
+        snprintf(err, n, "integrity: %s", catalog_errmsg(c));
+    else if ((rc = catalog_run_get(c, uuid, out)) != SL_OK)
+        snprintf(err, n, "%s", catalog_errmsg(c));
+    catalog_close(c);
+    return rc == SL_OK ? 0 : -1;
+}
+
+#include "daemon_client.h"
+
+static inline void fx_bench_release(bench *b)
+{
+    for (guint i = 0; b->clients && i < b->clients->len; i++) {
+        dc_close(b->clients->pdata[i]);
+        g_free(b->clients->pdata[i]);
+    }
+    if (b->clients)
+        g_ptr_array_free(b->clients, TRUE);
+    if (b->keep)
+        g_ptr_array_free(b->keep, TRUE);
+    b->clients = b->keep = NULL;
+}
+
+/* Keep n until the bench goes down (so a failing CHECK leaks nothing). */
+static inline JsonNode *keep(bench *b, JsonNode *n)
+{
+    if (n)
+        g_ptr_array_add(b->keep, n);
+    return n;
+}
+
+/* A connected client closed by bench_down; NULL when connect fails. */
+static inline dc *bench_client(bench *b)
+{
+    dc *c = g_new0(dc, 1);
+    if (dc_connect(c, b->sock) != 0) {
+        g_free(c);
+        return NULL;
+    }
+    g_ptr_array_add(b->clients, c);
+    return c;
+}
+
+/* Poll status until the daemon reports the camera connected (it opens it
+ * at start, in the background); 0 when it did within timeout_s. */
+static inline int bench_wait_camera(bench *b, dc *c, double timeout_s)
+{
+    double end = fx_now() + timeout_s;
+    while (fx_now() < end) {
+        JsonNode *r = keep(b, dc_call(c, "status", NULL, 5));
+        JsonNode *m = r ? jget(r, "result.camera.connected") : NULL;
+        if (m && JSON_NODE_HOLDS_VALUE(m) && json_node_get_boolean(m))
+            return 0;
+        fx_nap_ms(50);
+    }
+    return -1;
+}
+
+/* A daemon still running must stop cleanly on SIGTERM: exit 0 (under
+ * ASan, LeakSanitizer makes a leak a non-zero exit). */
+static inline void bench_check_stop(tc *t, bench *b)
+{
+    if (b->daemon.pid <= 0)
+        return;
+    int st = fx_stop(&b->daemon, SIGTERM, 20);
+    if (st != 0 && !t->failed)
+        tc_note(t, 0, __FILE__, __LINE__, "daemon exit", "specklabd exited %d on SIGTERM "
+                "(a crash or a leak: see its log)", st);
+}
+
+/* A test with a bench up (stage flags stage_extra, a NULL-terminated
+ * string array or NULL; config text conf_extra) in its own namespace,
+ * torn down whatever the body's CHECKs do; the daemon's log is printed
+ * when the test fails. */
+#define BENCH_TEST(name, limit_s, stage_extra, conf_extra)                    \
+    static void name##_body(tc *t, bench *b);                                 \
+    static void name##_run(tc *t)                                             \
+    {                                                                         \
+        bench b_;                                                             \
+        if (bench_up(&b_, stage_extra, conf_extra) != 0) {                    \
+            tc_note(t, 0, __FILE__, __LINE__, "bench_up", "bench did not start " \
+                    "(stage, camera or daemon; SL_BIN_DIR?)");                \
+            bench_down(&b_, 1);                                               \
+            return;                                                           \
+        }                                                                     \
+        name##_body(t, &b_);                                                  \
+        bench_check_stop(t, &b_);                                             \
+        bench_down(&b_, t->failed);                                           \
+    }                                                                         \
+    TEST(name) { fx_in_netns(t, name##_run, limit_s); }                       \
+    static void name##_body(tc *t, bench *b)
+
+#endif

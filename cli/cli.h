@@ -23,6 +23,11 @@ gboolean cli_parse_size(const char *text, int *w, int *h, GError **error);
 gboolean cli_parse(GOptionContext *ctx, int *argc, char ***argv);
 /* Print a JSON object built with b to stdout, one line. */
 void cli_print_json(JsonBuilder *b);
+/* Add member k to the object being built: a string, an integer, or a
+ * number (null when not finite, since JSON has no NaN). */
+void cli_json_str(JsonBuilder *b, const char *k, const char *v);
+void cli_json_int(JsonBuilder *b, const char *k, gint64 v);
+void cli_json_num(JsonBuilder *b, const char *k, double v);
 /* Wall-clock seconds (monotonic). */
 double cli_now_s(void);
 /* Peak resident set size of this process in MB. */

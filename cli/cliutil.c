@@ -1,6 +1,7 @@
 /* cliutil.c - helpers shared by the subcommands (see cli.h). */
 #include "cli.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/resource.h>
@@ -47,6 +48,27 @@ void cli_print_json(JsonBuilder *b)
     g_free(text);
     g_object_unref(g);
     json_node_unref(root);
+}
+
+void cli_json_str(JsonBuilder *b, const char *k, const char *v)
+{
+    json_builder_set_member_name(b, k);
+    json_builder_add_string_value(b, v);
+}
+
+void cli_json_int(JsonBuilder *b, const char *k, gint64 v)
+{
+    json_builder_set_member_name(b, k);
+    json_builder_add_int_value(b, v);
+}
+
+void cli_json_num(JsonBuilder *b, const char *k, double v)
+{
+    json_builder_set_member_name(b, k);
+    if (isfinite(v))
+        json_builder_add_double_value(b, v);
+    else
+        json_builder_add_null_value(b);
 }
 
 double cli_now_s(void)

@@ -27,7 +27,6 @@
 #include "cli.h"
 #include "cube.h"
 
-
 #define FLUSH_FRAMES 100
 
 typedef struct grab_args {
@@ -54,39 +53,6 @@ static gboolean parse(GOptionContext *ctx, int *argc, char ***argv)
         return FALSE;
     }
     return TRUE;
-}
-
-static void print_json(JsonBuilder *b)
-{
-    JsonNode *root = json_builder_get_root(b);
-    JsonGenerator *g = json_generator_new();
-    json_generator_set_root(g, root);
-    gchar *text = json_generator_to_data(g, NULL);
-    printf("%s\n", text);
-    g_free(text);
-    g_object_unref(g);
-    json_node_unref(root);
-}
-
-static void jstr(JsonBuilder *b, const char *k, const char *v)
-{
-    json_builder_set_member_name(b, k);
-    json_builder_add_string_value(b, v);
-}
-
-static void jint(JsonBuilder *b, const char *k, gint64 v)
-{
-    json_builder_set_member_name(b, k);
-    json_builder_add_int_value(b, v);
-}
-
-static void jdbl(JsonBuilder *b, const char *k, double v)
-{
-    json_builder_set_member_name(b, k);
-    if (isfinite(v))
-        json_builder_add_double_value(b, v);
-    else
-        json_builder_add_null_value(b);
 }
 
 /* ---- list --------------------------------------------------------------- */
@@ -119,17 +85,17 @@ static int run_list(int argc, char **argv)
         json_builder_begin_array(b);
         for (int i = 0; i < n; i++) {
             json_builder_begin_object(b);
-            jstr(b, "id", v[i].id);
-            jstr(b, "vendor", v[i].vendor);
-            jstr(b, "model", v[i].model);
-            jstr(b, "serial", v[i].serial);
-            jstr(b, "address", v[i].address);
-            jstr(b, "protocol", v[i].protocol);
+            cli_json_str(b, "id", v[i].id);
+            cli_json_str(b, "vendor", v[i].vendor);
+            cli_json_str(b, "model", v[i].model);
+            cli_json_str(b, "serial", v[i].serial);
+            cli_json_str(b, "address", v[i].address);
+            cli_json_str(b, "protocol", v[i].protocol);
             json_builder_end_object(b);
         }
         json_builder_end_array(b);
         json_builder_end_object(b);
-        print_json(b);
+        cli_print_json(b);
         g_object_unref(b);
     } else if (n == 0) {
         printf("no camera found (GigE cameras must answer discovery on a local "
@@ -187,24 +153,24 @@ static int run_info(int argc, char **argv)
     if (json) {
         JsonBuilder *b = json_builder_new();
         json_builder_begin_object(b);
-        jstr(b, "id", in.id), jstr(b, "vendor", in.vendor), jstr(b, "model", in.model);
-        jstr(b, "serial", in.serial), jstr(b, "address", in.address);
-        jstr(b, "protocol", in.protocol);
-        jint(b, "sensor_width", cp.sensor_width), jint(b, "sensor_height", cp.sensor_height);
-        jint(b, "mono8", !!(cp.pixel_formats & CAMERA_PIXF(CAMERA_PIX_MONO8)));
-        jint(b, "mono16", !!(cp.pixel_formats & CAMERA_PIXF(CAMERA_PIX_MONO16)));
-        jdbl(b, "exposure_min_us", cp.exposure_min_us), jdbl(b, "exposure_max_us", cp.exposure_max_us);
-        jdbl(b, "gain_min_db", cp.gain_min_db), jdbl(b, "gain_max_db", cp.gain_max_db);
-        jdbl(b, "frame_rate_min_hz", cp.frame_rate_min_hz);
-        jdbl(b, "frame_rate_max_hz", cp.frame_rate_max_hz);
-        jint(b, "roi_x", cf.x), jint(b, "roi_y", cf.y);
-        jint(b, "roi_width", cf.width), jint(b, "roi_height", cf.height);
-        jstr(b, "pixel_format", camera_pixfmt_name(cf.pixel_format));
-        jdbl(b, "exposure_us", cf.exposure_us), jdbl(b, "gain_db", cf.gain_db);
-        jdbl(b, "frame_rate_hz", cf.frame_rate_hz);
-        jstr(b, "trigger", camera_trigger_name(cf.trigger));
+        cli_json_str(b, "id", in.id), cli_json_str(b, "vendor", in.vendor), cli_json_str(b, "model", in.model);
+        cli_json_str(b, "serial", in.serial), cli_json_str(b, "address", in.address);
+        cli_json_str(b, "protocol", in.protocol);
+        cli_json_int(b, "sensor_width", cp.sensor_width), cli_json_int(b, "sensor_height", cp.sensor_height);
+        cli_json_int(b, "mono8", !!(cp.pixel_formats & CAMERA_PIXF(CAMERA_PIX_MONO8)));
+        cli_json_int(b, "mono16", !!(cp.pixel_formats & CAMERA_PIXF(CAMERA_PIX_MONO16)));
+        cli_json_num(b, "exposure_min_us", cp.exposure_min_us), cli_json_num(b, "exposure_max_us", cp.exposure_max_us);
+        cli_json_num(b, "gain_min_db", cp.gain_min_db), cli_json_num(b, "gain_max_db", cp.gain_max_db);
+        cli_json_num(b, "frame_rate_min_hz", cp.frame_rate_min_hz);
+        cli_json_num(b, "frame_rate_max_hz", cp.frame_rate_max_hz);
+        cli_json_int(b, "roi_x", cf.x), cli_json_int(b, "roi_y", cf.y);
+        cli_json_int(b, "roi_width", cf.width), cli_json_int(b, "roi_height", cf.height);
+        cli_json_str(b, "pixel_format", camera_pixfmt_name(cf.pixel_format));
+        cli_json_num(b, "exposure_us", cf.exposure_us), cli_json_num(b, "gain_db", cf.gain_db);
+        cli_json_num(b, "frame_rate_hz", cf.frame_rate_hz);
+        cli_json_str(b, "trigger", camera_trigger_name(cf.trigger));
         json_builder_end_object(b);
-        print_json(b);
+        cli_print_json(b);
         g_object_unref(b);
     } else {
         printf("%s %s, serial %s, %s at %s (id %s)\n", in.vendor, in.model, in.serial,
@@ -442,16 +408,16 @@ close_cube:
     if (a->json) {
         JsonBuilder *b = json_builder_new();
         json_builder_begin_object(b);
-        jstr(b, "output", a->out), jstr(b, "camera", a->camera);
-        jint(b, "stored", stored), jint(b, "failed", (gint64)st.failed);
-        jint(b, "missing_packets", (gint64)st.missing_packets);
-        jint(b, "underruns", (gint64)st.underruns), jint(b, "id_gaps", (gint64)st.id_gaps);
-        jint(b, "width", cf.width), jint(b, "height", cf.height);
-        jstr(b, "pixel_format", camera_pixfmt_name(cf.pixel_format));
-        jdbl(b, "fps", fps), jdbl(b, "elapsed_s", el);
-        jint(b, "ok", status == 0);
+        cli_json_str(b, "output", a->out), cli_json_str(b, "camera", a->camera);
+        cli_json_int(b, "stored", stored), cli_json_int(b, "failed", (gint64)st.failed);
+        cli_json_int(b, "missing_packets", (gint64)st.missing_packets);
+        cli_json_int(b, "underruns", (gint64)st.underruns), cli_json_int(b, "id_gaps", (gint64)st.id_gaps);
+        cli_json_int(b, "width", cf.width), cli_json_int(b, "height", cf.height);
+        cli_json_str(b, "pixel_format", camera_pixfmt_name(cf.pixel_format));
+        cli_json_num(b, "fps", fps), cli_json_num(b, "elapsed_s", el);
+        cli_json_int(b, "ok", status == 0);
         json_builder_end_object(b);
-        print_json(b);
+        cli_print_json(b);
         g_object_unref(b);
     } else {
         printf("%s %s: %d frames %dx%d %s stored, %llu failed, %llu missing packets, "

@@ -16,18 +16,6 @@ typedef struct devices_out {
     int problems;     /* warnings and errors seen */
 } devices_out;
 
-static void add_str(JsonBuilder *b, const char *k, const char *v)
-{
-    json_builder_set_member_name(b, k);
-    json_builder_add_string_value(b, v);
-}
-
-static void add_int(JsonBuilder *b, const char *k, gint64 v)
-{
-    json_builder_set_member_name(b, k);
-    json_builder_add_int_value(b, v);
-}
-
 static void list_cameras(devices_out *d, const char *backend)
 {
     camera_info *cams = NULL;
@@ -46,12 +34,12 @@ static void list_cameras(devices_out *d, const char *backend)
         const camera_info *c = &cams[i];
         if (d->json) {
             json_builder_begin_object(d->b);
-            add_str(d->b, "id", c->id);
-            add_str(d->b, "vendor", c->vendor);
-            add_str(d->b, "model", c->model);
-            add_str(d->b, "serial", c->serial);
-            add_str(d->b, "address", c->address);
-            add_str(d->b, "protocol", c->protocol);
+            cli_json_str(d->b, "id", c->id);
+            cli_json_str(d->b, "vendor", c->vendor);
+            cli_json_str(d->b, "model", c->model);
+            cli_json_str(d->b, "serial", c->serial);
+            cli_json_str(d->b, "address", c->address);
+            cli_json_str(d->b, "protocol", c->protocol);
             json_builder_end_object(d->b);
         } else {
             printf("  %s  %s %s, serial %s, %s at %s\n", c->id, c->vendor,
@@ -102,11 +90,11 @@ static void show_stage(devices_out *d, const char *addr)
     if (d->json) {
         json_builder_set_member_name(d->b, "stage");
         json_builder_begin_object(d->b);
-        add_str(d->b, "address", addr);
+        cli_json_str(d->b, "address", addr);
         json_builder_set_member_name(d->b, "connected");
         json_builder_add_boolean_value(d->b, err == NULL);
         if (err)
-            add_str(d->b, "error", err);
+            cli_json_str(d->b, "error", err);
     } else {
         printf("stage %s: %s\n", addr, err ? err : "connected");
     }
@@ -123,12 +111,12 @@ static void show_stage(devices_out *d, const char *addr)
         d->problems += st.faulted;
         if (d->json) {
             json_builder_begin_object(d->b);
-            add_str(d->b, "name", stage_wheel_name(w));
-            add_int(d->b, "slots", st.slots);
-            add_int(d->b, "position", st.position);
+            cli_json_str(d->b, "name", stage_wheel_name(w));
+            cli_json_int(d->b, "slots", st.slots);
+            cli_json_int(d->b, "position", st.position);
             json_builder_set_member_name(d->b, "homed");
             json_builder_add_boolean_value(d->b, st.homed);
-            add_str(d->b, "fault", st.fault_text);
+            cli_json_str(d->b, "fault", st.fault_text);
             json_builder_end_object(d->b);
         } else {
             printf("  %-6s wheel: %d slots, ", stage_wheel_name(w), st.slots);
@@ -160,11 +148,11 @@ static void usb_finding_cb(const usb_dev_info *dev, const usb_finding *f, void *
         d->problems++;
     if (d->json) {
         json_builder_begin_object(d->b);
-        add_str(d->b, "device", label);
-        add_str(d->b, "level", usb_level_name(f->level));
-        add_str(d->b, "check", usb_check_name(f->check));
-        add_str(d->b, "text", f->text);
-        add_str(d->b, "fix", f->fix);
+        cli_json_str(d->b, "device", label);
+        cli_json_str(d->b, "level", usb_level_name(f->level));
+        cli_json_str(d->b, "check", usb_check_name(f->check));
+        cli_json_str(d->b, "text", f->text);
+        cli_json_str(d->b, "fix", f->fix);
         json_builder_end_object(d->b);
     } else {
         printf("  [%s] %s: %s\n", usb_level_name(f->level), label, f->text);
@@ -218,7 +206,7 @@ int cmd_devices(int argc, char **argv)
         show_stage(&d, stage_addr ? stage_addr : "127.0.0.1:1502");
     diagnose_usb(&d);
     if (json) {
-        add_int(d.b, "problems", d.problems);
+        cli_json_int(d.b, "problems", d.problems);
         json_builder_end_object(d.b);
         cli_print_json(d.b);
         g_object_unref(d.b);

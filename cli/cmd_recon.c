@@ -19,30 +19,15 @@ typedef struct recon_args {
     double photons, gain_adu_per_photon, saturation, wiener;
 } recon_args;
 
-static void json_num(JsonBuilder *b, const char *k, double v)
-{
-    json_builder_set_member_name(b, k);
-    if (isfinite(v))
-        json_builder_add_double_value(b, v);
-    else
-        json_builder_add_null_value(b);
-}
-
-static void json_str(JsonBuilder *b, const char *k, const char *v)
-{
-    json_builder_set_member_name(b, k);
-    json_builder_add_string_value(b, v);
-}
-
 static void recon_report(const recon_args *a, const pipeline_opts *o,
                          const pipeline_result *r, const char *input)
 {
     if (a->json) {
         JsonBuilder *b = json_builder_new();
         json_builder_begin_object(b);
-        json_str(b, "input", input);
-        json_str(b, "output", a->out);
-        json_str(b, "method", pipeline_method_name(o->method));
+        cli_json_str(b, "input", input);
+        cli_json_str(b, "output", a->out);
+        cli_json_str(b, "method", pipeline_method_name(o->method));
         json_builder_set_member_name(b, "parameters");
         json_builder_begin_object(b);
         double v;
@@ -50,8 +35,8 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
                                      "RECNPAIR", "RECPHOT", "RECGAIN"};
         for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
             if (cube_meta_get_num(&r->meta, keys[i], &v) == SL_OK)
-                json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
-        json_str(b, "reference", o->ref_path ? o->ref_path : "none");
+                cli_json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
+        cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
         json_builder_end_object(b);
         json_builder_set_member_name(b, "frames");
         json_builder_add_int_value(b, r->nframes);
@@ -59,9 +44,9 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         json_builder_add_int_value(b, r->width);
         json_builder_set_member_name(b, "height");
         json_builder_add_int_value(b, r->height);
-        json_num(b, "plate_scale_arcsec", r->plate_scale_arcsec);
-        json_num(b, "elapsed_s", r->elapsed_s);
-        json_num(b, "peak_rss_mb", cli_peak_rss_mb());
+        cli_json_num(b, "plate_scale_arcsec", r->plate_scale_arcsec);
+        cli_json_num(b, "elapsed_s", r->elapsed_s);
+        cli_json_num(b, "peak_rss_mb", cli_peak_rss_mb());
         json_builder_end_object(b);
         cli_print_json(b);
         g_object_unref(b);
@@ -233,10 +218,10 @@ int cmd_compare(int argc, char **argv)
     if (json) {
         JsonBuilder *jb = json_builder_new();
         json_builder_begin_object(jb);
-        json_num(jb, "c", c);
-        json_num(jb, "c_unregistered", metrics_corr(a->data, b->data, a->width, a->height));
-        json_num(jb, "shift_x_px", dx);
-        json_num(jb, "shift_y_px", dy);
+        cli_json_num(jb, "c", c);
+        cli_json_num(jb, "c_unregistered", metrics_corr(a->data, b->data, a->width, a->height));
+        cli_json_num(jb, "shift_x_px", dx);
+        cli_json_num(jb, "shift_y_px", dy);
         json_builder_end_object(jb);
         cli_print_json(jb);
         g_object_unref(jb);
@@ -297,15 +282,15 @@ int cmd_binary(int argc, char **argv)
     if (json) {
         JsonBuilder *jb = json_builder_new();
         json_builder_begin_object(jb);
-        json_num(jb, "sep_px", b.sep_px);
-        json_num(jb, "sep_err_px", b.sep_err_px);
-        json_num(jb, "pa_deg", b.pa_deg);
-        json_num(jb, "pa_err_deg", b.pa_err_deg);
-        json_num(jb, "dm_mag", b.dm_mag);
-        json_num(jb, "dm_err_mag", b.dm_err_mag);
-        json_num(jb, "flux_ratio", b.flux_ratio);
-        json_num(jb, "sep_arcsec", b.sep_px * ps);
-        json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
+        cli_json_num(jb, "sep_px", b.sep_px);
+        cli_json_num(jb, "sep_err_px", b.sep_err_px);
+        cli_json_num(jb, "pa_deg", b.pa_deg);
+        cli_json_num(jb, "pa_err_deg", b.pa_err_deg);
+        cli_json_num(jb, "dm_mag", b.dm_mag);
+        cli_json_num(jb, "dm_err_mag", b.dm_err_mag);
+        cli_json_num(jb, "flux_ratio", b.flux_ratio);
+        cli_json_num(jb, "sep_arcsec", b.sep_px * ps);
+        cli_json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
         json_builder_end_object(jb);
         cli_print_json(jb);
         g_object_unref(jb);

@@ -39,11 +39,6 @@
 #include <time.h>
 #include <unistd.h>
 
-/* For grab when bin/specklab lacks `camera`: the command compiled in (it
- * uses no other cli/ file).  First: GLib's headers must precede recon's
- * `mask` typedef (gutils.h has parameters named mask). */
-#include "../../cli/cmd_camera.c"
-
 #include "camera.h"
 #include "cube.h"
 #include "stage_map.h"
@@ -638,16 +633,11 @@ static void body_grab_stock(tc *t)
     char *gargv[] = {cli, "camera", "grab", "--camera", "127.0.0.1", "--frames", "25",
                      "--roi", "0,0,64,48", "--frame-rate-hz", "200", "-o", out, NULL};
     char *help[] = {cli, "camera", "--help", NULL};
-    int via_bin = access(cli, X_OK) == 0 && run_wait(help, 1) == 0, status;
-    if (via_bin) {
+    int via_bin = access(cli, X_OK) == 0 && run_wait(help, 1) == 0, status = -1;
+    if (via_bin)
         status = run_wait(gargv, 0);
-    } else {
-        char name[] = "specklab camera";
-        gargv[1] = name;
-        status = cmd_camera(12, gargv + 1);
-    }
     stop(&fake, SIGTERM);
-    printf("note: grab ran %s\n", via_bin ? cli : "in-process (bin/specklab has no camera)");
+    CHECK(via_bin, "%s is missing or has no camera command (run make)", cli);
     seq *s = NULL;
     sl_err e = {0};
     const char *paths[] = {out};

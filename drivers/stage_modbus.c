@@ -324,7 +324,10 @@ static int handshake(stage_link *l, double deadline_s, sl_err *e)
     l->ident.version = id[1];
     l->ident.nwheels = id[2];
     for (int w = 0; w < STAGE_NWHEELS; w++) {
-        const uint16_t *b = wr + STAGE_REG_WHEEL_BASE(w) - STAGE_REG_WHEEL_BASE(0);
+        /* Offset first: wr + BASE(1) alone would point past the end of
+         * wr before the subtraction, which is undefined (UBSan, fuzzing). */
+        const uint16_t *b =
+            wr + (STAGE_REG_WHEEL_BASE(w) - STAGE_REG_WHEEL_BASE(0));
         l->ident.slots[w] = b[STAGE_WREG_SLOTS];
         l->ident.move_ms[w] = b[STAGE_WREG_MOVE_MS];
     }

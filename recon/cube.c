@@ -1,6 +1,7 @@
 /* cube.c - the streaming FITS reader; see cube.h.
  * Metadata helpers and the writer live in cube_write.c. */
 #include "cube.h"
+#include "cube_guard.h"
 
 #include <errno.h>
 #include <fitsio.h>
@@ -329,6 +330,8 @@ static int open_file(const cube_file *f, fitsfile **fp, int *w, int *h,
                      int *n, int *hdu, sl_err *err)
 {
     int st = 0, rc;
+    if ((rc = cube_guard_check(f->path, err)) != SL_OK)
+        return rc;
     if (fits_open_diskfile(fp, f->path, READONLY, &st))
         return open_error(f->path, st, err);
     rc = find_image(*fp, f->path, hdu, err);
@@ -519,6 +522,8 @@ int cube_read_ext(seq **out, const char *path, const char *extname,
     *out = NULL;
     if (!path || !extname)
         return sl_seterr(err, SL_EINVAL, "cube_read_ext: NULL argument");
+    if ((rc = cube_guard_check(path, err)) != SL_OK)
+        return rc;
     if (fits_open_diskfile(&fp, path, READONLY, &st))
         return open_error(path, st, err);
     if (fits_movnam_hdu(fp, IMAGE_HDU, (char *)extname, 0, &st)) {

@@ -92,7 +92,10 @@ typedef struct cube_reader cube_reader;
  * npaths > 1: the files, in order, as one sequence; sizes must agree.
  * Every file's header is read here (to count frames and check sizes), one
  * file at a time; frames are read lazily by cube_reader_next.  Metadata
- * comes from the first file. */
+ * comes from the first file.  A file holding a tile-compressed image
+ * (ZIMAGE = T) is refused with SL_EFORMAT, here and by cube_read_ext:
+ * cfitsio 4.2 crashes on corrupt ones (recon/cube_guard.c); funpack such
+ * files first. */
 int cube_reader_open(cube_reader **out, const char *const *paths,
                      int npaths, unsigned flags, sl_err *err);
 int cube_reader_width(const cube_reader *r);

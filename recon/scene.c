@@ -272,6 +272,10 @@ close_file:
 static void splat_point(float *img, int w, int h, double px, double py,
                         double flux)
 {
+    /* A point at px <= -1 or >= w touches no pixel; skipping it also keeps
+     * the int conversion below in range (found by fuzzing: 1e300). */
+    if (!(px > -1 && px < w && py > -1 && py < h))
+        return;
     int x0 = (int)floor(px), y0 = (int)floor(py);
     double fx = px - x0, fy = py - y0;
     double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy,
@@ -286,7 +290,10 @@ static void splat_point(float *img, int w, int h, double px, double py,
 /* Unnormalised surface brightness of a disk at offset (dx, dy) arcsec. */
 static double disk_brightness(const scene_comp *c, double dx, double dy)
 {
-    double r2 = (dx * dx + dy * dy) / (c->radius_arcsec * c->radius_arcsec);
+    /* Scaled before squaring: dx * dx overflows to Inf for a disk of
+     * 1e300 arcsec, and Inf / Inf made NaN pixels (found by fuzzing). */
+    double u = dx / c->radius_arcsec, v = dy / c->radius_arcsec;
+    double r2 = u * u + v * v;
     if (r2 >= 1)
         return 0;
     double mu = sqrt(1 - r2);
@@ -296,13 +303,22 @@ static double disk_brightness(const scene_comp *c, double dx, double dy)
     return b;
 }
 
-/* Cost: O(disk area in pixels * 16). */
-static void render_disk(const scene_comp *c, float *img, int w, int h,
-                        double ps)
+/* Cost: O(disk area in pixels * 16), at most SCENE_MAX_DISK_RADIUS_PX^2
+ * * 64 brightness samples.  SL_ERANGE (nothing drawn) for a disk larger
+ * than that; a disk wholly off the grid is skipped. */
+static int render_disk(const scene_comp *c, float *img, int w, int h,
+                       double ps)
 {
     const int ss = 4;
     double cx = w / 2 + c->x_arcsec / ps, cy = h / 2 + c->y_arcsec / ps;
     double rp = c->radius_arcsec / ps + 1;
+    /* The box [floor(cx - rp), ceil(cx + rp)] misses the grid: nothing to
+     * draw.  Otherwise |cx|, |cy| <= grid + rp, so with the cap on rp every
+     * bound below fits an int (fuzzing found 1e300 arcsec offsets). */
+    if (cx + rp < -1 || cx - rp > w || cy + rp < -1 || cy - rp > h)
+        return SL_OK;
+    if (!(rp <= SCENE_MAX_DISK_RADIUS_PX))
+        return SL_ERANGE;
     int x0 = (int)floor(cx - rp), x1 = (int)ceil(cx + rp);
     int y0 = (int)floor(cy - rp), y1 = (int)ceil(cy + rp);
     double total = 0;
@@ -324,25 +340,29 @@ static void render_disk(const scene_comp *c, float *img, int w, int h,
                     img[(size_t)y * w + x] += (float)(sum * scale);
             }
         if (total <= 0)
-            return;
+            return SL_OK;
     }
+    return SL_OK;
 }
 
 int scene_render(const scene *s, float *img, int w, int h,
                  double pscale_arcsec, int omit_points)
 {
-    if (!(pscale_arcsec > 0) || w <= 0 || h <= 0)
-        return SL_EINVAL;
+    if (!(pscale_arcsec > 0 && isfinite(pscale_arcsec)) || w <= 0 || h <= 0)
+        return SL_EINVAL; /* Inf: 0 * Inf offsets would make NaN pixels */
+    int rc = SL_OK;
     memset(img, 0, (size_t)w * h * sizeof *img);
-    for (int i = 0; i < s->n; i++) {
+    for (int i = 0; i < s->n && rc == SL_OK; i++) {
         const scene_comp *c = &s->comp[i];
         if (c->kind == SCENE_POINT) {
             if (!omit_points)
                 splat_point(img, w, h, w / 2 + c->x_arcsec / pscale_arcsec,
                             h / 2 + c->y_arcsec / pscale_arcsec, c->flux);
         } else {
-            render_disk(c, img, w, h, pscale_arcsec);
+            rc = render_disk(c, img, w, h, pscale_arcsec);
         }
     }
-    return SL_OK;
+    if (rc != SL_OK) /* a partial image must not pass for the scene */
+        memset(img, 0, (size_t)w * h * sizeof *img);
+    return rc;
 }

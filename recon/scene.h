@@ -64,7 +64,11 @@ int scene_read(scene **out, const char *path, sl_err *err);
  * nearest pixels and disks area-sampled 4x4 per pixel, so the image sum is
  * the scene's total flux (for everything inside the grid).  Points are
  * omitted when omit_points is set: the simulator adds them analytically
- * in the Fourier domain (exact sub-pixel positions). */
+ * in the Fourier domain (exact sub-pixel positions).  SL_EINVAL for a bad
+ * grid; SL_ERANGE, with an all-zero image, when a disk that touches the
+ * grid has a radius over SCENE_MAX_DISK_RADIUS_PX pixels (its whole-disk
+ * normalisation would cost O(radius^2) samples). */
+#define SCENE_MAX_DISK_RADIUS_PX 1024
 int scene_render(const scene *s, float *img, int w, int h,
                  double pscale_arcsec, int omit_points);
 

@@ -200,6 +200,11 @@ test: deps
 quick: all
 	@SL_QUICK=1 tests/run $(TEST_BIN)
 
+# Speed and accuracy live here, never in timed tests: a quick sweep, then
+# the issue's speed targets (200^2, 100 frames, median of 5) checked.
+bench: all
+	@bin/specklab bench --quick && bin/specklab bench --speed
+
 # The numerical-stability suite with its slow cases too.
 stress: all
 	@SL_STRESS_FULL=1 tests/run $(TSTR_BIN)

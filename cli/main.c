@@ -23,6 +23,7 @@ static const command commands[] = {
     {"recon", cmd_recon, "reconstruct a FITS sequence (direct bispectrum or TSM)"},
     {"compare", cmd_compare, "correlation coefficient c of two images"},
     {"binary", cmd_binary, "separation, position angle and dm of a binary image"},
+    {"bench", cmd_bench, "run time against error of every method on simulated cubes (table, CSV, PNG, catalogue)"},
     {"mask", cmd_mask, "generate or show an aperture mask"},
     {"devices", cmd_devices, "cameras and stages found, with diagnosis (USB speed, permissions)"},
     {"camera", cmd_camera, "machine-vision cameras: list, info, grab frames to a FITS cube"},

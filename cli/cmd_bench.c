@@ -1,0 +1,608 @@
+/* cmd_bench.c - `specklab bench`: run time against error on simulated
+ * cubes with known truth (issue 6).
+ *
+ * A sweep is a Cartesian product: scenes x sizes x frame counts x photon
+ * levels (the data sets, each simulated once into a FITS cube with its
+ * TRUTH and COPHASED extensions) times configurations (method x R2 for
+ * direct, x projections for TSM, x without/with a reference).  Each point
+ * is pipeline_run on the FITS file, end to end, in a forked child
+ * (bench_measure: wall and CPU time, the child's own peak RSS), scored
+ * against the cophased image (bench_score_image).  The reference variant
+ * reconstructs with a point-source sequence simulated with another seed
+ * (seed + 1000, same size, frames and photons) and the cophased point
+ * source as --target.
+ *
+ * Presets: --quick (a handful of points, < 1 min, `make bench`), --speed
+ * (issue 3's and 6's speed targets at 100 frames of 200^2, median of 5
+ * runs, checked), the
+ * default (the method grid on three scenes and two photon levels, plus
+ * size and frame-count scaling; a few minutes), --paper (Table 2's layout
+ * at 200^2 and 128^2, or --sizes, and a binaries table at the first
+ * size; --paper ignores the other selections).  Any of --scenes, --sizes, --frames, --photons,
+ * --methods, --projections, --r2, --ref replaces the preset's main sweep
+ * by one sweep built from the preset's lists with those replaced.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <glib/gstdio.h>
+
+#include "bench_cli.h"
+#include "pipeline.h"
+
+typedef struct bench_args {
+    gboolean quick, paper, speed, estimate, keep_data;
+    char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
+    char *seps, *dms, *ref, *csv, *png, *catalog, *dir;
+    int repeat, threads;
+    gint64 seed;
+} bench_args;
+
+/* One Cartesian sweep, in the option syntax. */
+typedef struct sweep {
+    const char *scenes, *sizes, *frames, *photons, *methods, *projections;
+    const char *r2, *ref;
+    int block;
+    const char *seps, *dms;   /* binary geometry; NULL: "6", "1" */
+} sweep;
+
+static const sweep quick_sweeps[] = {
+    {"binary,six-star", "128", "50", "0", "direct,tsm,tsm-fourier", "18,180",
+     "0", "both", 0, NULL, NULL},
+};
+
+static const sweep speed_sweeps[] = {
+    {"binary", "200", "100", "0", "direct,tsm,tsm-fourier", "18,180", "28",
+     "no", 0, NULL, NULL},
+};
+
+static const sweep default_sweeps[] = {
+    {"binary,six-star,extended", "128", "100", "0,1000",
+     "direct,tsm,tsm-fourier", "6,18,36,90,180,360", "8,16,28", "both", 0, NULL, NULL},
+    /* Scaling: size (TSM to 512^2; direct's dense R2 = 0.14 N grows as
+     * N^4, so it stops at 256^2), then frame count. */
+    {"binary", "64,128,256,512", "100", "0", "tsm-fourier", "180", "0", "no", 3, NULL, NULL},
+    {"binary", "64,128,256", "100", "0", "direct", "180", "0", "no", 3, NULL, NULL},
+    {"binary", "128", "10,30,100,300,1000", "0", "direct,tsm-fourier", "180",
+     "0", "no", 3, NULL, NULL},
+};
+
+typedef struct config {
+    int method, param, ref; /* param: R2 (direct) or projections (TSM) */
+} config;
+
+typedef struct refset {
+    int w, h, n;
+    double photons;
+    char *cube, *psf;
+} refset;
+
+typedef struct ctx {
+    const bench_args *a;
+    char *dir;
+    GArray *rows;      /* bcli_row */
+    GArray *refs;      /* refset */
+    int ndata;         /* data sets simulated (file names) */
+    int failures;
+} ctx;
+
+/* ---- option lists ---- */
+
+static gchar **split(const char *s) { return g_strsplit(s, ",", -1); }
+
+static int parse_ints(const char *what, const char *s, int lo, int hi,
+                      GArray *out)
+{
+    gchar **v = split(s);
+    int rc = 0;
+    for (int i = 0; v[i] && !rc; i++) {
+        char *end = NULL;
+        long x = strtol(v[i], &end, 10);
+        if (end == v[i] || *end || x < lo || x > hi) {
+            fprintf(stderr, "specklab bench: --%s '%s': expected integers "
+                    "%d..%d\n", what, v[i], lo, hi);
+            rc = 2;
+        } else {
+            int xi = (int)x;
+            g_array_append_val(out, xi);
+        }
+    }
+    g_strfreev(v);
+    return rc;
+}
+
+static int parse_doubles(const char *what, const char *s, GArray *out)
+{
+    gchar **v = split(s);
+    int rc = 0;
+    for (int i = 0; v[i] && !rc; i++) {
+        char *end = NULL;
+        double x = g_ascii_strtod(v[i], &end);
+        if (end == v[i] || *end || !(x >= 0) || !isfinite(x)) {
+            fprintf(stderr, "specklab bench: --%s '%s': expected numbers "
+                    ">= 0\n", what, v[i]);
+            rc = 2;
+        } else {
+            g_array_append_val(out, x);
+        }
+    }
+    g_strfreev(v);
+    return rc;
+}
+
+/* Sizes as pairs (w, h). */
+static int parse_sizes(const char *s, GArray *out)
+{
+    gchar **v = split(s);
+    int rc = 0;
+    for (int i = 0; v[i] && !rc; i++) {
+        int wh[2];
+        GError *e = NULL;
+        if (!cli_parse_size(v[i], &wh[0], &wh[1], &e)) {
+            fprintf(stderr, "specklab bench: %s\n", e->message);
+            g_error_free(e);
+            rc = 2;
+        } else {
+            g_array_append_vals(out, wh, 2);
+        }
+    }
+    g_strfreev(v);
+    return rc;
+}
+
+/* Configurations: direct x R2, TSM variants x projections, any other
+ * method once; each without and/or with the reference. */
+static int parse_configs(const sweep *sw, GArray *out)
+{
+    GArray *proj = g_array_new(FALSE, FALSE, sizeof(int));
+    GArray *r2 = g_array_new(FALSE, FALSE, sizeof(int));
+    gchar **m = split(sw->methods);
+    int rc = parse_ints("projections", sw->projections, 2, 3600, proj);
+    if (!rc)
+        rc = parse_ints("r2", sw->r2, 0, 144, r2);
+    int refs[2], nref = 0;
+    if (!strcmp(sw->ref, "no") || !strcmp(sw->ref, "both"))
+        refs[nref++] = 0;
+    if (!strcmp(sw->ref, "yes") || !strcmp(sw->ref, "both"))
+        refs[nref++] = 1;
+    if (!rc && nref == 0) {
+        fprintf(stderr, "specklab bench: --ref '%s': no, yes or both\n", sw->ref);
+        rc = 2;
+    }
+    for (int i = 0; m[i] && !rc; i++) {
+        int meth;
+        if (pipeline_method_parse(m[i], &meth) != SL_OK) {
+            fprintf(stderr, "specklab bench: unknown method '%s' (direct, tsm, "
+                    "tsm-fourier)\n", m[i]);
+            rc = 2;
+            break;
+        }
+        GArray *params = meth == PIPE_DIRECT ? r2 : proj;
+        for (int r = 0; r < nref; r++)
+            for (guint k = 0; k < params->len; k++) {
+                config c = {meth, g_array_index(params, int, k), refs[r]};
+                g_array_append_val(out, c);
+            }
+    }
+    g_strfreev(m);
+    g_array_free(proj, TRUE);
+    g_array_free(r2, TRUE);
+    return rc;
+}
+
+/* ---- data sets ---- */
+
+/* The cached point-source reference (and cophased PSF) for a geometry. */
+static const refset *get_ref(ctx *c, int w, int h, int n, double photons)
+{
+    for (guint i = 0; i < c->refs->len; i++) {
+        refset *r = &g_array_index(c->refs, refset, i);
+        if (r->w == w && r->h == h && r->n == n && r->photons == photons)
+            return r;
+    }
+    refset r = {w, h, n, photons, NULL, NULL};
+    r.cube = g_strdup_printf("%s/ref-%dx%d-%d-%g.fits", c->dir, w, h, n, photons);
+    r.psf = g_strdup_printf("%s/psf-%dx%d-%d-%g.fits", c->dir, w, h, n, photons);
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.scene = "point";
+    s.width = w;
+    s.height = h;
+    s.nframes = n;
+    s.photons = photons;
+    s.seed = (uint64_t)c->a->seed + 1000;
+    sl_err e = {0};
+    fprintf(stderr, "bench: simulating the reference, %dx%d, %d frames, %g "
+            "photons\n", w, h, n, photons);
+    if (bench_sim_write(&s, r.cube, r.psf, &e) != SL_OK) {
+        fprintf(stderr, "specklab bench: reference: %s\n", e.msg);
+        g_free(r.cube);
+        g_free(r.psf);
+        return NULL;
+    }
+    g_array_append_val(c->refs, r);
+    return &g_array_index(c->refs, refset, c->refs->len - 1);
+}
+
+static int same_point(const bcli_row *a, const bench_sim *d, const config *cf)
+{
+    return !strcmp(a->scene, d->scene) && a->width == d->width &&
+           a->height == d->height && a->frames == d->nframes &&
+           a->photons == d->photons && a->sep_lod == d->sep_lod &&
+           a->dm_mag == d->dm_mag && a->method == cf->method &&
+           a->ref == cf->ref && (cf->method == PIPE_DIRECT ? a->r2 : a->nangles) == cf->param;
+}
+
+static void measure_one(ctx *c, const bench_sim *d, const char *cube,
+                        const refset *ref, const bench_truth *truth,
+                        const bench_score *mfloor, const config *cf, int block,
+                        float *img)
+{
+    const bench_args *a = c->a;
+    bcli_row r;
+    memset(&r, 0, sizeof r);
+    snprintf(r.scene, sizeof r.scene, "%s", d->scene);
+    r.width = d->width;
+    r.height = d->height;
+    r.frames = d->nframes;
+    r.photons = d->photons;
+    r.sep_lod = d->sep_lod;
+    r.pa_deg = d->pa_deg;
+    r.dm_mag = d->dm_mag;
+    r.method = cf->method;
+    r.ref = cf->ref;
+    r.repeat = a->repeat;
+    r.threads = a->threads;
+    r.block = block;
+    r.floor = *mfloor;
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.method = cf->method;
+    if (cf->method == PIPE_DIRECT)
+        o.r2_px = r.r2 = cf->param;
+    else
+        o.nangles = r.nangles = cf->param;
+    o.nthreads = a->threads;
+    o.fftw_measure = !a->estimate;
+    if (cf->ref) {
+        o.ref_path = ref->cube;
+        o.target_path = ref->psf;
+    }
+    sl_err e = {0};
+    r.status = bench_measure(cube, &o, a->repeat, img, d->width, d->height,
+                             &r.t, &e);
+    bench_score_init(&r.s);
+    if (r.status == SL_OK)
+        r.status = bench_score_image(img, truth, BENCH_HP_SIGMA_PX, &r.s, &e);
+    if (r.status != SL_OK) {
+        snprintf(r.msg, sizeof r.msg, "%s", e.msg);
+        c->failures++;
+    }
+    bcli_print_row(&r);
+    g_array_append_val(c->rows, r);
+}
+
+/* Simulate one data set and measure every configuration on it. */
+static int run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
+                       int block)
+{
+    int need_ref = 0, todo = 0;
+    for (int i = 0; i < ncf; i++) {
+        int dup = 0;
+        for (guint k = 0; k < c->rows->len && !dup; k++)
+            dup = same_point(&g_array_index(c->rows, bcli_row, k), d, &cf[i]);
+        todo += !dup;
+        need_ref |= !dup && cf[i].ref;
+    }
+    if (!todo)
+        return 0;
+    const refset *ref = need_ref ? get_ref(c, d->width, d->height, d->nframes,
+                                           d->photons) : NULL;
+    if (need_ref && !ref)
+        return 1;
+    char *cube = g_strdup_printf("%s/data-%03d-%s.fits", c->dir, c->ndata++,
+                                 d->scene);
+    sl_err e = {0};
+    bench_truth truth = {0};
+    float *img = malloc(sizeof(float) * (size_t)d->width * (size_t)d->height);
+    fprintf(stderr, "bench: simulating %s, %dx%d, %d frames, %g photons\n",
+            d->scene, d->width, d->height, d->nframes, d->photons);
+    int rc = !img ? sl_seterr(&e, SL_ENOMEM, "out of memory")
+                  : bench_sim_write(d, cube, NULL, &e);
+    bench_score mfloor;
+    if (rc == SL_OK)
+        rc = bench_truth_read(&truth, cube, &e);
+    if (rc == SL_OK)
+        rc = bench_score_image(truth.cophased, &truth, BENCH_HP_SIGMA_PX,
+                               &mfloor, &e);
+    if (rc == SL_OK && truth.binary)
+        printf("# %s %g/%g %dx%d: metrics_binary on the cophased image itself "
+               "(the metric's floor): dsep %+.3f px, dPA %+.2f deg, ddm %+.3f\n",
+               d->scene, d->sep_lod, d->dm_mag, d->width, d->height,
+               mfloor.sep_err_px, mfloor.pa_err_deg, mfloor.dm_err_mag);
+    if (rc != SL_OK) {
+        fprintf(stderr, "specklab bench: %s\n", e.msg);
+        c->failures++;
+    }
+    for (int i = 0; i < ncf && rc == SL_OK; i++) {
+        int dup = 0;
+        for (guint k = 0; k < c->rows->len && !dup; k++)
+            dup = same_point(&g_array_index(c->rows, bcli_row, k), d, &cf[i]);
+        if (!dup)
+            measure_one(c, d, cube, ref, &truth, &mfloor, &cf[i], block, img);
+    }
+    bench_truth_clear(&truth);
+    free(img);
+    if (!c->a->keep_data)
+        g_unlink(cube);
+    g_free(cube);
+    return rc == SL_OK ? 0 : 1;
+}
+
+static int run_sweep(ctx *c, const sweep *sw)
+{
+    GArray *sizes = g_array_new(FALSE, FALSE, sizeof(int));
+    GArray *frames = g_array_new(FALSE, FALSE, sizeof(int));
+    GArray *photons = g_array_new(FALSE, FALSE, sizeof(double));
+    GArray *cfs = g_array_new(FALSE, FALSE, sizeof(config));
+    GArray *seps = g_array_new(FALSE, FALSE, sizeof(double));
+    GArray *dms = g_array_new(FALSE, FALSE, sizeof(double));
+    gchar **scenes = split(sw->scenes);
+    int rc = parse_sizes(sw->sizes, sizes);
+    if (!rc)
+        rc = parse_doubles("seps", sw->seps ? sw->seps : "6", seps);
+    if (!rc)
+        rc = parse_doubles("dms", sw->dms ? sw->dms : "1", dms);
+    if (!rc)
+        rc = parse_ints("frames", sw->frames, 1, 100000, frames);
+    if (!rc)
+        rc = parse_doubles("photons", sw->photons, photons);
+    if (!rc)
+        rc = parse_configs(sw, cfs);
+    for (int s = 0; scenes[s] && !rc; s++)
+        for (guint z = 0; z + 1 < sizes->len && !rc; z += 2)
+            for (guint f = 0; f < frames->len && !rc; f++)
+                for (guint p = 0; p < photons->len && !rc; p++)
+                    for (guint q = 0; q < seps->len * dms->len && !rc; q++) {
+                        int bin = !strcmp(scenes[s], "binary");
+                        if (!bin && q > 0)
+                            break; /* geometry only varies binaries */
+                        bench_sim d;
+                        bench_sim_defaults(&d);
+                        d.scene = scenes[s];
+                        d.width = g_array_index(sizes, int, z);
+                        d.height = g_array_index(sizes, int, z + 1);
+                        d.nframes = g_array_index(frames, int, f);
+                        d.photons = g_array_index(photons, double, p);
+                        d.sep_lod = g_array_index(seps, double, q / dms->len);
+                        d.dm_mag = g_array_index(dms, double, q % dms->len);
+                        d.seed = (uint64_t)c->a->seed;
+                        rc = run_dataset(c, &d, (config *)(void *)cfs->data,
+                                         (int)cfs->len, sw->block);
+                    }
+    g_strfreev(scenes);
+    g_array_free(seps, TRUE);
+    g_array_free(dms, TRUE);
+    g_array_free(sizes, TRUE);
+    g_array_free(frames, TRUE);
+    g_array_free(photons, TRUE);
+    g_array_free(cfs, TRUE);
+    return rc;
+}
+
+/* The paper's Table 2 (six-star, extended; direct, TSM 180, TSM 18, and
+ * our Fourier-slice TSM) at 200^2 and 128^2 (or --sizes), then binaries at
+ * the first size: separations 5..20 lambda/D, dm 0..2. */
+static int run_paper(ctx *c)
+{
+    static const config t2[] = {
+        {PIPE_DIRECT, 0, 0}, {PIPE_TSM, 180, 0}, {PIPE_TSM, 18, 0},
+        {PIPE_TSM_FOURIER, 180, 0}, {PIPE_TSM_FOURIER, 18, 0},
+        {PIPE_DIRECT, 0, 1}, {PIPE_TSM, 180, 1}, {PIPE_TSM, 18, 1},
+        {PIPE_TSM_FOURIER, 180, 1}, {PIPE_TSM_FOURIER, 18, 1}};
+    static const char *const scenes[] = {"six-star", "extended"};
+    GArray *sizes = g_array_new(FALSE, FALSE, sizeof(int));
+    int rc = parse_sizes(c->a->sizes ? c->a->sizes : "200,128", sizes);
+    for (guint z = 0; z + 1 < sizes->len && !rc; z += 2)
+        for (int s = 0; s < 2 && !rc; s++) {
+            bench_sim d;
+            bench_sim_defaults(&d);
+            d.scene = scenes[s];
+            d.width = g_array_index(sizes, int, z);
+            d.height = g_array_index(sizes, int, z + 1);
+            d.seed = (uint64_t)c->a->seed;
+            rc = run_dataset(c, &d, t2, 10, 1);
+        }
+    static const config bin[] = {
+        {PIPE_DIRECT, 0, 0}, {PIPE_TSM, 180, 0}, {PIPE_TSM, 18, 0},
+        {PIPE_TSM_FOURIER, 180, 0},
+        {PIPE_DIRECT, 0, 1}, {PIPE_TSM, 180, 1}, {PIPE_TSM, 18, 1},
+        {PIPE_TSM_FOURIER, 180, 1}};
+    static const double seps[] = {5, 10, 15, 20}, dms[] = {0, 1, 2};
+    for (int i = 0; i < 4 && !rc && sizes->len >= 2; i++)
+        for (int j = 0; j < 3 && !rc; j++) {
+            bench_sim d;
+            bench_sim_defaults(&d);
+            d.width = g_array_index(sizes, int, 0);
+            d.height = g_array_index(sizes, int, 1);
+            d.sep_lod = seps[i];
+            d.dm_mag = dms[j];
+            d.pa_deg = 30 + 25 * (3 * i + j); /* spread PAs over the circle */
+            d.seed = (uint64_t)c->a->seed + 1 + (uint64_t)(3 * i + j);
+            rc = run_dataset(c, &d, bin, 8, 2);
+        }
+    g_array_free(sizes, TRUE);
+    return rc;
+}
+
+static int selection_given(const bench_args *a)
+{
+    return a->scenes || a->sizes || a->frames || a->photons || a->methods ||
+           a->projections || a->r2 || a->ref || a->seps || a->dms;
+}
+
+static int run_all(ctx *c)
+{
+    const bench_args *a = c->a;
+    if (a->paper)
+        return run_paper(c);
+    const sweep *list = a->quick ? quick_sweeps : a->speed ? speed_sweeps
+                                                           : default_sweeps;
+    int n = a->quick ? (int)G_N_ELEMENTS(quick_sweeps)
+          : a->speed ? (int)G_N_ELEMENTS(speed_sweeps)
+                     : (int)G_N_ELEMENTS(default_sweeps);
+    if (selection_given(a)) {
+        sweep one = list[0];
+        one.scenes = a->scenes ? a->scenes : one.scenes;
+        one.sizes = a->sizes ? a->sizes : one.sizes;
+        one.frames = a->frames ? a->frames : one.frames;
+        one.photons = a->photons ? a->photons : one.photons;
+        one.methods = a->methods ? a->methods : one.methods;
+        one.projections = a->projections ? a->projections : one.projections;
+        one.r2 = a->r2 ? a->r2 : one.r2;
+        one.ref = a->ref ? a->ref : one.ref;
+        one.seps = a->seps ? a->seps : one.seps;
+        one.dms = a->dms ? a->dms : one.dms;
+        return run_sweep(c, &one);
+    }
+    int rc = 0;
+    for (int i = 0; i < n && !rc; i++)
+        rc = run_sweep(c, &list[i]);
+    return rc;
+}
+
+static void cleanup(ctx *c)
+{
+    for (guint i = 0; i < c->refs->len; i++) {
+        refset *r = &g_array_index(c->refs, refset, i);
+        if (!c->a->keep_data) {
+            g_unlink(r->cube);
+            g_unlink(r->psf);
+        }
+        g_free(r->cube);
+        g_free(r->psf);
+    }
+    if (!c->a->keep_data)
+        g_rmdir(c->dir);
+}
+
+static int bench_main(bench_args *a)
+{
+    ctx c = {a, NULL, NULL, NULL, 0, 0};
+    GError *gerr = NULL;
+    if (a->dir) {
+        if (g_mkdir_with_parents(a->dir, 0755) != 0) {
+            fprintf(stderr, "specklab bench: cannot create %s: %s\n", a->dir,
+                    g_strerror(errno));
+            return 1;
+        }
+        c.dir = g_strdup(a->dir);
+        a->keep_data = TRUE;
+    } else if (!(c.dir = g_dir_make_tmp("specklab-bench-XXXXXX", &gerr))) {
+        fprintf(stderr, "specklab bench: %s\n", gerr->message);
+        g_error_free(gerr);
+        return 1;
+    }
+    c.rows = g_array_new(FALSE, FALSE, sizeof(bcli_row));
+    c.refs = g_array_new(FALSE, FALSE, sizeof(refset));
+    double base = bench_baseline_rss_mb();
+    printf("# specklab bench: %s preset, %d run(s) per point (median), "
+           "FFTW_%s, 17-hole mask, r0 0.2 m, wind 10 m/s, 500 nm, Nyquist\n"
+           "# time: wall/CPU of pipeline_run on the FITS file; rss: the "
+           "child's peak (fork floor %.1f MB)\n", a->paper ? "paper" :
+           a->quick ? "quick" : a->speed ? "speed" : "default", a->repeat,
+           a->estimate ? "ESTIMATE" : "MEASURE", base);
+    bcli_print_header();
+    int rc = run_all(&c);
+    bcli_mark_fronts(c.rows);
+    bcli_print_fronts(c.rows);
+    bcli_print_scaling(c.rows);
+    if (a->paper)
+        bcli_print_paper(c.rows);
+    if (a->speed)
+        bcli_print_targets(c.rows);
+    int out = 0;
+    fflush(stdout);
+    const char *csv = a->csv ? a->csv : "bench.csv";
+    const char *png = a->png ? a->png : "bench.png";
+    if (strcmp(csv, "none") && bcli_write_csv(csv, c.rows, base))
+        out = 1;
+    if (strcmp(png, "none") && bcli_write_png(png, c.rows))
+        out = 1;
+    if (a->catalog && bcli_write_catalog(a->catalog, c.rows, base))
+        out = 1;
+    if (c.failures)
+        fprintf(stderr, "specklab bench: %d point(s) failed (see the table)\n",
+                c.failures);
+    cleanup(&c);
+    g_array_free(c.rows, TRUE);
+    g_array_free(c.refs, TRUE);
+    g_free(c.dir);
+    return rc ? rc : out || c.failures ? 1 : 0;
+}
+
+int cmd_bench(int argc, char **argv)
+{
+    bench_args a;
+    memset(&a, 0, sizeof a);
+    a.seed = 1;
+    GOptionEntry entries[] = {
+        {"quick", 0, 0, G_OPTION_ARG_NONE, &a.quick, "a handful of points (< 1 min; make bench)", NULL},
+        {"paper", 0, 0, G_OPTION_ARG_NONE, &a.paper, "the paper's Table 2 layout and a binaries table", NULL},
+        {"speed", 0, 0, G_OPTION_ARG_NONE, &a.speed, "the speed targets of issues 3 and 6 (200^2, 100 frames, 5 runs)", NULL},
+        {"scenes", 0, 0, G_OPTION_ARG_STRING, &a.scenes, "binary,six-star,extended", "LIST"},
+        {"sizes", 0, 0, G_OPTION_ARG_STRING, &a.sizes, "frame sizes, N or WxH (e.g. 64,128,200; --paper: 200,128)", "LIST"},
+        {"frames", 0, 0, G_OPTION_ARG_STRING, &a.frames, "frame counts (e.g. 10,100,1000)", "LIST"},
+        {"photons", 0, 0, G_OPTION_ARG_STRING, &a.photons, "photons per frame, 0 = noiseless (e.g. 0,1000)", "LIST"},
+        {"methods", 0, 0, G_OPTION_ARG_STRING, &a.methods, "direct,tsm,tsm-fourier", "LIST"},
+        {"projections", 0, 0, G_OPTION_ARG_STRING, &a.projections, "TSM projection counts (e.g. 6,18,180,360)", "LIST"},
+        {"r2", 0, 0, G_OPTION_ARG_STRING, &a.r2, "direct |u2| radii in px, 0 = 0.14 N (e.g. 8,16,28)", "LIST"},
+        {"seps", 0, 0, G_OPTION_ARG_STRING, &a.seps, "binary separations in lambda/D, D = mask extent (default 6)", "LIST"},
+        {"dms", 0, 0, G_OPTION_ARG_STRING, &a.dms, "binary magnitude differences (default 1)", "LIST"},
+        {"ref", 0, 0, G_OPTION_ARG_STRING, &a.ref, "reference variants: no, yes or both", "MODE"},
+        {"repeat", 0, 0, G_OPTION_ARG_INT, &a.repeat, "runs per point, median reported (default 1; --speed 5)", "N"},
+        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "direct: bispectrum threads (default 2)", "N"},
+        {"seed", 0, 0, G_OPTION_ARG_INT64, &a.seed, "simulation seed (reference: seed + 1000)", "N"},
+        {"estimate", 0, 0, G_OPTION_ARG_NONE, &a.estimate, "FFTW_ESTIMATE plans instead of FFTW_MEASURE", NULL},
+        {"csv", 0, 0, G_OPTION_ARG_FILENAME, &a.csv, "CSV output (default bench.csv; none: skip)", "FILE"},
+        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "time/error chart (default bench.png; none: skip)", "FILE"},
+        {"catalog", 0, 0, G_OPTION_ARG_FILENAME, &a.catalog, "also add rows to this catalogue's benchmarks table", "DB"},
+        {"data-dir", 0, 0, G_OPTION_ARG_FILENAME, &a.dir, "simulate into DIR and keep the cubes (default: a temporary directory)", "DIR"},
+        {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    GOptionContext *ctx_ = g_option_context_new("- run time against error on simulated cubes");
+    g_option_context_add_main_entries(ctx_, entries, NULL);
+    g_option_context_set_description(ctx_,
+        "Each point: pipeline_run end to end from a FITS cube, in a forked child\n"
+        "(wall and CPU time, the child's peak RSS), scored against the simulation's\n"
+        "cophased image: 1 - c, 1 - c high-passed (Gaussian sigma 2 px subtracted),\n"
+        "and for binaries the separation, PA and dm errors.  'ref' points use a\n"
+        "point-source sequence (seed + 1000) and its cophased image as --target.\n"
+        "Any selection option replaces the preset's sweeps by one sweep.");
+    int status = 2;
+    if (!cli_parse(ctx_, &argc, &argv))
+        goto free_ctx;
+    if (argc > 1) {
+        fprintf(stderr, "specklab bench: unexpected argument '%s'\n", argv[1]);
+        goto free_ctx;
+    }
+    if (a.repeat == 0)
+        a.repeat = a.speed ? 5 : 1;
+    if (a.repeat < 1 || a.repeat > BENCH_MAX_REPEAT || a.threads < 0 ||
+        a.quick + a.paper + a.speed > 1) {
+        fprintf(stderr, "specklab bench: --repeat 1..%d, --threads >= 0, and "
+                "at most one of --quick/--paper/--speed\n", BENCH_MAX_REPEAT);
+        goto free_ctx;
+    }
+    status = bench_main(&a);
+free_ctx:
+    g_option_context_free(ctx_);
+    g_free(a.scenes); g_free(a.sizes); g_free(a.frames); g_free(a.photons);
+    g_free(a.methods); g_free(a.projections); g_free(a.r2); g_free(a.ref);
+    g_free(a.seps); g_free(a.dms);
+    g_free(a.csv); g_free(a.png); g_free(a.catalog); g_free(a.dir);
+    return status;
+}

@@ -1,0 +1,524 @@
+/* bench.c - see bench.h.  The chart is in bench_plot.c. */
+#include "bench.h"
+
+#include <errno.h>
+#include <fftw3.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cube.h"
+#include "mask.h"
+#include "metrics.h"
+#include "scene.h"
+#include "sim.h"
+
+#define RAD_ARCSEC 206264.80624709636
+
+void bench_sim_defaults(bench_sim *s)
+{
+    memset(s, 0, sizeof *s);
+    s->scene = "binary";
+    s->width = s->height = 128;
+    s->nframes = 100;
+    s->sep_lod = 6;
+    s->pa_deg = 30;
+    s->dm_mag = 1;
+    s->seed = 1;
+    s->r0_m = 0.2;
+    s->wind_mps = 10;
+    s->saturation_adu = 1e9;
+}
+
+/* The header `specklab sim` would write, for the keywords we read back. */
+static void sim_header(const bench_sim *b, const sim *s, double lod_px,
+                       double sep_arcsec, cube_meta *md)
+{
+    const sim_opts *o = sim_options(s);
+    cube_meta_init(md);
+    snprintf(md->instrume, sizeof md->instrume, "specklab-bench");
+    snprintf(md->object, sizeof md->object, "%s", b->scene);
+    snprintf(md->bunit, sizeof md->bunit, "%s",
+             o->photons_per_frame > 0 ? "adu" : "relative flux");
+    md->plate_scale_arcsec = sim_plate_scale_arcsec(s);
+    md->wavelength_m = o->wavelength_m;
+    cube_meta_set_str(md, "SIMSCENE", b->scene, "scene");
+    cube_meta_set_str(md, "SIMMASK", "nrm17", "pupil mask");
+    cube_meta_set_num(md, "NYQUIST", sim_nyquist_arcsec(s), "[arcsec/px] Nyquist");
+    cube_meta_set_num(md, "LODPX", lod_px, "[px] lambda/D, D = mask extent");
+    cube_meta_set_num(md, "SIMR0", o->r0_m, "[m] Fried parameter");
+    cube_meta_set_num(md, "SIMWIND", o->wind_mps, "[m/s] frozen-flow speed");
+    cube_meta_set_num(md, "SIMSEED", (double)o->seed, "random seed");
+    cube_meta_set_num(md, "SIMPHOT", o->photons_per_frame, "mean photons/frame, 0 = noiseless");
+    if (o->photons_per_frame > 0) {
+        cube_meta_set_num(md, "SIMGAIN", o->gain_e_per_adu, "[e-/adu] gain");
+        cube_meta_set_num(md, "SIMSAT", o->saturation_adu, "[adu] saturation");
+    }
+    if (strcmp(b->scene, "binary") == 0) {
+        cube_meta_set_num(md, "BINSEP", sep_arcsec, "[arcsec] binary separation");
+        cube_meta_set_num(md, "BINSEPPX", sep_arcsec / sim_plate_scale_arcsec(s),
+                          "[px] binary separation");
+        cube_meta_set_num(md, "BINPA", b->pa_deg, "[deg] PA from +y (N) to -x (E)");
+        cube_meta_set_num(md, "BINDM", b->dm_mag, "[mag] companion dm");
+    }
+}
+
+/* Frames, TRUTH, COPHASED into path; the cophased image stays in buf. */
+static int write_frames(sim *s, const char *path, const cube_meta *md,
+                        float *buf, sl_err *err)
+{
+    const sim_opts *o = sim_options(s);
+    cube_writer *w = NULL;
+    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, err);
+    if (rc != SL_OK)
+        return rc;
+    for (int k = 0; k < o->nframes && rc == SL_OK; k++) {
+        if ((rc = sim_frame(s, k, buf)) != SL_OK)
+            sl_seterr(err, rc, "frame %d: %s", k, sim_errmsg(s));
+        else if ((rc = cube_writer_append(w, buf)) != SL_OK)
+            sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
+    }
+    if (rc == SL_OK && (rc = sim_truth(s, buf)) == SL_OK &&
+        (rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height,
+                                    NULL)) != SL_OK)
+        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
+    if (rc == SL_OK && (rc = sim_cophased(s, buf)) == SL_OK &&
+        (rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height,
+                                    NULL)) != SL_OK)
+        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
+    if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
+        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
+    cube_writer_free(w);
+    return rc;
+}
+
+int bench_sim_write(const bench_sim *b, const char *cube_path,
+                    const char *psf_path, sl_err *err)
+{
+    mask *m = NULL;
+    scene *sc = NULL;
+    sim *s = NULL;
+    float *buf = NULL;
+    sim_opts o;
+    sim_opts_defaults(&o);
+    o.width = b->width;
+    o.height = b->height;
+    o.nframes = b->nframes;
+    o.photons_per_frame = b->photons;
+    o.seed = b->seed;
+    o.plate_scale_arcsec = b->plate_scale_arcsec;
+    o.r0_m = b->r0_m > 0 ? b->r0_m : 0.2;
+    o.wind_mps = b->wind_mps;
+    o.saturation_adu = b->saturation_adu > 0 ? b->saturation_adu : 1e9;
+    o.fftw_flags = FFTW_ESTIMATE;
+    int rc = mask_named(&m, "nrm17", err);
+    if (rc != SL_OK)
+        return rc;
+    double lod_arcsec = o.wavelength_m / mask_extent_m(m) * RAD_ARCSEC;
+    double sep_arcsec = b->sep_lod * lod_arcsec;
+    if ((rc = scene_named(&sc, b->scene, sep_arcsec, b->pa_deg, b->dm_mag,
+                          err)) != SL_OK)
+        goto free_mask;
+    if ((rc = sim_new(&s, &o, m, sc, err)) != SL_OK)
+        goto free_scene;
+    buf = malloc(sizeof(float) * (size_t)o.width * (size_t)o.height);
+    if (!buf) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory");
+        goto free_sim;
+    }
+    cube_meta md;
+    sim_header(b, s, lod_arcsec / sim_plate_scale_arcsec(s), sep_arcsec, &md);
+    if ((rc = write_frames(s, cube_path, &md, buf, err)) != SL_OK)
+        goto free_sim;
+    if (psf_path) {
+        seq img = {o.width, o.height, 1, buf};
+        rc = cube_write(psf_path, &img, &md, err);
+    }
+free_sim:
+    free(buf);
+    sim_free(s);
+free_scene:
+    scene_free(sc);
+free_mask:
+    mask_free(m);
+    return rc;
+}
+
+int bench_truth_read(bench_truth *t, const char *cube_path, sl_err *err)
+{
+    memset(t, 0, sizeof *t);
+    t->sep_px = t->pa_deg = t->dm_mag = NAN;
+    seq *img = NULL;
+    cube_reader *r = NULL;
+    const char *paths[] = {cube_path};
+    int rc = cube_reader_open(&r, paths, 1, CUBE_ALLOW_NONFINITE, err);
+    if (rc != SL_OK)
+        return rc;
+    const cube_meta *m = cube_reader_meta(r);
+    t->plate_scale_arcsec = m->plate_scale_arcsec;
+    t->binary = cube_meta_get_num(m, "BINSEPPX", &t->sep_px) == SL_OK &&
+                cube_meta_get_num(m, "BINPA", &t->pa_deg) == SL_OK &&
+                cube_meta_get_num(m, "BINDM", &t->dm_mag) == SL_OK;
+    cube_reader_free(r);
+    if ((rc = cube_read_ext(&img, cube_path, "COPHASED", err)) != SL_OK)
+        return rc;
+    t->width = img->width;
+    t->height = img->height;
+    t->cophased = img->data; /* take the pixels, free the shell */
+    img->data = NULL;
+    seq_free(img);
+    return SL_OK;
+}
+
+void bench_truth_clear(bench_truth *t)
+{
+    if (!t)
+        return;
+    free(t->cophased);
+    t->cophased = NULL;
+}
+
+/* ---- measurement ---- */
+
+typedef struct child_report {
+    int status;                       /* SL_OK or the pipeline's code */
+    int width, height, nframes, nrun;
+    double r2_px, nangles, ntriples;   /* from the result's header */
+    double wall_s[BENCH_MAX_REPEAT], cpu_s[BENCH_MAX_REPEAT];
+    char msg[SL_ERRMSG_MAX];
+} child_report;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static double cpu_s(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec +
+           ru.ru_stime.tv_sec + 1e-6 * ru.ru_stime.tv_usec;
+}
+
+static int write_all(int fd, const void *buf, size_t n)
+{
+    const char *p = buf;
+    while (n > 0) {
+        ssize_t k = write(fd, p, n);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            return -1;
+        p += k;
+        n -= (size_t)k;
+    }
+    return 0;
+}
+
+/* Bytes read (short only at EOF or on error). */
+static size_t read_all(int fd, void *buf, size_t n)
+{
+    char *p = buf;
+    size_t got = 0;
+    while (got < n) {
+        ssize_t k = read(fd, p + got, n - got);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            break;
+        got += (size_t)k;
+    }
+    return got;
+}
+
+/* The child: never returns.  _exit skips atexit handlers and stdio
+ * buffers that belong to the parent. */
+static void child_main(int fd, const char *cube, const pipeline_opts *o,
+                       int repeat)
+{
+    fftw_forget_wisdom();
+    fftwf_forget_wisdom();
+    child_report *rep = calloc(1, sizeof *rep);
+    pipeline_result r = {0};
+    sl_err e = {0};
+    const char *paths[] = {cube};
+    if (!rep)
+        _exit(3);
+    for (int i = 0; i < repeat; i++) {
+        pipeline_result_clear(&r);
+        double t0 = now_s(), c0 = cpu_s();
+        int rc = pipeline_run(paths, 1, o, &r, &e);
+        double t1 = now_s(), c1 = cpu_s();
+        if (rc != SL_OK) {
+            rep->status = rc;
+            snprintf(rep->msg, sizeof rep->msg, "%s", e.msg);
+            break;
+        }
+        rep->wall_s[i] = t1 - t0;
+        rep->cpu_s[i] = c1 - c0;
+        rep->nrun = i + 1;
+        rep->width = r.width;
+        rep->height = r.height;
+        rep->nframes = r.nframes;
+        rep->r2_px = rep->nangles = rep->ntriples = NAN;
+        cube_meta_get_num(&r.meta, "RECR2", &rep->r2_px);
+        cube_meta_get_num(&r.meta, "RECNANG", &rep->nangles);
+        cube_meta_get_num(&r.meta, "RECNTRI", &rep->ntriples);
+    }
+    int bad = write_all(fd, rep, sizeof *rep);
+    if (!bad && rep->status == SL_OK)
+        bad = write_all(fd, r.image, sizeof(float) * (size_t)r.width *
+                                         (size_t)r.height);
+    _exit(bad ? 4 : 0);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(const double *v, int n)
+{
+    double s[BENCH_MAX_REPEAT];
+    memcpy(s, v, sizeof(double) * (size_t)n);
+    qsort(s, (size_t)n, sizeof s[0], cmp_double);
+    return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+}
+
+/* Wait for the child; a failed run that left no message gets one from its
+ * exit status. */
+static int reap(pid_t pid, int rc, sl_err *err, double *maxrss_mb)
+{
+    int st = 0;
+    struct rusage ru;
+    memset(&ru, 0, sizeof ru);
+    while (wait4(pid, &st, 0, &ru) < 0 && errno == EINTR)
+        ;
+    *maxrss_mb = ru.ru_maxrss / 1024.0; /* Linux: kB */
+    if (rc == SL_OK && WIFSIGNALED(st))
+        rc = sl_seterr(err, SL_EIO, "benchmark child killed by signal %d",
+                       WTERMSIG(st));
+    else if (rc == SL_OK && WIFEXITED(st) && WEXITSTATUS(st) != 0)
+        rc = sl_seterr(err, SL_EIO, "benchmark child exited with %d",
+                       WEXITSTATUS(st));
+    return rc;
+}
+
+int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
+                  float *img, int w, int h, bench_timing *t, sl_err *err)
+{
+    memset(t, 0, sizeof *t);
+    t->wall_s = t->cpu_s = t->wall_first_s = t->cpu_first_s = NAN;
+    t->peak_rss_mb = t->r2_px = t->nangles = t->ntriples = NAN;
+    if (repeat < 1 || repeat > BENCH_MAX_REPEAT || !cube || !o || !img)
+        return sl_seterr(err, SL_EINVAL, "bench_measure: bad arguments "
+                         "(repeat %d, 1..%d)", repeat, BENCH_MAX_REPEAT);
+    child_report *rep = calloc(1, sizeof *rep);
+    int fds[2];
+    if (!rep)
+        return sl_seterr(err, SL_ENOMEM, "out of memory");
+    if (pipe(fds) != 0) {
+        free(rep);
+        return sl_seterr(err, SL_EIO, "pipe: %s", strerror(errno));
+    }
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0) {
+        int e = errno;
+        close(fds[0]);
+        close(fds[1]);
+        free(rep);
+        return sl_seterr(err, SL_EIO, "fork: %s", strerror(e));
+    }
+    if (pid == 0) {
+        close(fds[0]);
+        child_main(fds[1], cube, o, repeat);
+    }
+    close(fds[1]);
+    int rc = SL_OK, short_read = 0;
+    size_t npix = (size_t)w * (size_t)h;
+    if (read_all(fds[0], rep, sizeof *rep) != sizeof *rep)
+        short_read = 1;
+    else if (rep->status != SL_OK)
+        rc = sl_seterr(err, rep->status, "%s", rep->msg);
+    else if (rep->width != w || rep->height != h)
+        rc = sl_seterr(err, SL_EFORMAT, "%s: image is %dx%d, expected %dx%d",
+                       cube, rep->width, rep->height, w, h);
+    else if (read_all(fds[0], img, npix * sizeof(float)) != npix * sizeof(float))
+        short_read = 1;
+    if (rc != SL_OK)
+        kill(pid, SIGKILL); /* it may be blocked writing the image */
+    close(fds[0]);
+    /* A short report means the child died: reap names the signal. */
+    rc = reap(pid, rc, err, &t->peak_rss_mb);
+    if (rc == SL_OK && short_read)
+        rc = sl_seterr(err, SL_EIO, "benchmark child sent a short report");
+    if (rc == SL_OK) {
+        t->repeat = rep->nrun;
+        t->wall_s = median(rep->wall_s, rep->nrun);
+        t->cpu_s = median(rep->cpu_s, rep->nrun);
+        t->wall_first_s = rep->wall_s[0];
+        t->cpu_first_s = rep->cpu_s[0];
+        t->nframes = rep->nframes;
+        t->width = rep->width;
+        t->height = rep->height;
+        t->r2_px = rep->r2_px;
+        t->nangles = rep->nangles;
+        t->ntriples = rep->ntriples;
+    }
+    free(rep);
+    return rc;
+}
+
+double bench_baseline_rss_mb(void)
+{
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0)
+        return NAN;
+    if (pid == 0)
+        _exit(0);
+    double mb = NAN;
+    reap(pid, SL_OK, NULL, &mb);
+    return mb;
+}
+
+/* ---- scores ---- */
+
+/* One periodic 1-D Gaussian pass along rows (stride 1, count n, repeated
+ * m times at pitch n) or columns; k: kernel of 2r+1 taps. */
+static void smooth_axis(const float *in, float *out, int n, int m,
+                        size_t step, size_t pitch, const double *k, int r)
+{
+    for (int j = 0; j < m; j++) {
+        const float *a = in + (size_t)j * pitch;
+        float *b = out + (size_t)j * pitch;
+        for (int i = 0; i < n; i++) {
+            double s = 0;
+            for (int t = -r; t <= r; t++) {
+                int q = ((i + t) % n + n) % n;
+                s += k[t + r] * a[(size_t)q * step];
+            }
+            b[(size_t)i * step] = (float)s;
+        }
+    }
+}
+
+int bench_highpass(const float *in, float *out, int w, int h,
+                   double sigma_px)
+{
+    if (!(sigma_px > 0) || w < 1 || h < 1)
+        return SL_EINVAL;
+    int r = (int)ceil(4 * sigma_px);
+    size_t n = (size_t)w * (size_t)h;
+    double *k = malloc(sizeof(double) * (size_t)(2 * r + 1));
+    float *t1 = malloc(sizeof(float) * n), *t2 = malloc(sizeof(float) * n);
+    int rc = SL_ENOMEM;
+    if (!k || !t1 || !t2)
+        goto free_all;
+    double sum = 0;
+    for (int i = -r; i <= r; i++)
+        sum += k[i + r] = exp(-0.5 * i * i / (sigma_px * sigma_px));
+    for (int i = 0; i <= 2 * r; i++)
+        k[i] /= sum;
+    smooth_axis(in, t1, w, h, 1, (size_t)w, k, r);  /* along x */
+    smooth_axis(t1, t2, h, w, (size_t)w, 1, k, r);  /* along y */
+    for (size_t i = 0; i < n; i++)
+        out[i] = in[i] - t2[i];
+    rc = SL_OK;
+free_all:
+    free(k);
+    free(t1);
+    free(t2);
+    return rc;
+}
+
+static double wrap180(double d)
+{
+    d = fmod(d, 360.0);
+    if (d > 180)
+        d -= 360;
+    if (d <= -180)
+        d += 360;
+    return d;
+}
+
+void bench_score_init(bench_score *s)
+{
+    s->c = s->c_hp = s->shift_x_px = s->shift_y_px = NAN;
+    s->binary_found = 0;
+    s->sep_px = s->pa_deg = s->dm_mag = NAN;
+    s->sep_err_px = s->pa_err_deg = s->dm_err_mag = NAN;
+}
+
+int bench_score_image(const float *img, const bench_truth *t,
+                      double hp_sigma_px, bench_score *s, sl_err *err)
+{
+    bench_score_init(s);
+    int w = t->width, h = t->height;
+    size_t n = (size_t)w * (size_t)h;
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(img[i]))
+            return sl_seterr(err, SL_EDATA, "image pixel (%zu, %zu) is not "
+                             "finite", i % (size_t)w, i / (size_t)w);
+    metrics_plan *mp = metrics_plan_new(w, h, err);
+    float *reg = malloc(sizeof(float) * n), *ha = malloc(sizeof(float) * n);
+    int rc = SL_ENOMEM;
+    if (!mp || !reg || !ha) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory");
+        goto free_all;
+    }
+    if ((rc = metrics_register(mp, t->cophased, img, reg, &s->shift_x_px,
+                               &s->shift_y_px)) != SL_OK) {
+        sl_seterr(err, rc, "%s", metrics_errmsg(mp));
+        goto free_all;
+    }
+    s->c = metrics_corr(t->cophased, reg, w, h);
+    if ((rc = bench_highpass(t->cophased, ha, w, h, hp_sigma_px)) != SL_OK ||
+        (rc = bench_highpass(reg, reg, w, h, hp_sigma_px)) != SL_OK) {
+        sl_seterr(err, rc, "high-pass failed");
+        goto free_all;
+    }
+    s->c_hp = metrics_corr(ha, reg, w, h);
+    binary_result b;
+    if (t->binary && metrics_plan_binary(mp, img, &b) == SL_OK) {
+        s->binary_found = 1;
+        s->sep_px = b.sep_px;
+        s->pa_deg = b.pa_deg;
+        s->dm_mag = b.dm_mag;
+        s->sep_err_px = b.sep_px - t->sep_px;
+        s->pa_err_deg = wrap180(b.pa_deg - t->pa_deg);
+        s->dm_err_mag = b.dm_mag - t->dm_mag;
+    }
+    rc = SL_OK;
+free_all:
+    metrics_plan_free(mp);
+    free(reg);
+    free(ha);
+    return rc;
+}
+
+void bench_pareto(const double *x, const double *y, int n,
+                  unsigned char *front)
+{
+    for (int i = 0; i < n; i++) {
+        front[i] = isfinite(x[i]) && isfinite(y[i]);
+        for (int j = 0; j < n && front[i]; j++) {
+            if (j == i || !isfinite(x[j]) || !isfinite(y[j]))
+                continue;
+            if (x[j] <= x[i] && y[j] <= y[i] && (x[j] < x[i] || y[j] < y[i]))
+                front[i] = 0;
+        }
+    }
+}

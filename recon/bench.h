@@ -1,0 +1,172 @@
+/* bench.h - measuring reconstructions against known truth: simulated data
+ * sets on disk, one end-to-end pipeline_run per forked child (wall, CPU,
+ * peak memory), error scores, the Pareto front and the time/error chart.
+ *
+ * Why a child per measurement: a process's peak RSS (ru_maxrss) only ever
+ * grows, so measuring several configurations in one process would report
+ * the largest so far.  Each bench_measure forks, runs the pipeline there
+ * and reads the child's own ru_maxrss from wait4(2).  The child first
+ * forgets any FFTW wisdom it inherited, so its first run plans from scratch
+ * as a fresh `specklab recon` would; later repeats in the same child reuse
+ * the in-process wisdom (FFTW_MEASURE then costs nothing), which is what the
+ * median of several repeats reports.  A fork copies the parent's page-table
+ * entries, so the child's RSS starts at the parent's: bench_baseline_rss_mb
+ * measures that floor (a child that does nothing), to be read beside it.
+ *
+ * Errors of a reconstruction (bench_score_image), against the COPHASED
+ * image of the simulation (the object seen through the same pupil without
+ * turbulence: what a perfect speckle reconstruction can reach):
+ *   c      the paper's correlation coefficient after sub-pixel registration
+ *          (metrics_plan_corr_registered); the error is 1 - c;
+ *   c_hp   the same registration, then both images high-passed by
+ *          subtracting a copy smoothed with a periodic Gaussian of sigma
+ *          hp_sigma_px (2 px: about one resolution element at Nyquist
+ *          sampling, where lambda/D = 2 px), then c.  It weighs the fine
+ *          structure (star cores, bands, fringes) that 1 - c, dominated by
+ *          the low-frequency envelope, hardly sees;
+ *   binary metrics_binary on the image against the header's BINSEPPX,
+ *          BINPA and BINDM: measured minus true separation (px), position
+ *          angle (deg, wrapped to (-180, 180]) and dm (mag).
+ *
+ * Separations are given in lambda/D with D the mask's outer extent (1.1 m
+ * for nrm17 at 500 nm: lambda/D = 0.094 arcsec = 2 px at Nyquist).
+ */
+#ifndef SL_BENCH_H
+#define SL_BENCH_H
+
+#include <stdint.h>
+
+#include "pipeline.h"
+#include "plot.h"
+#include "status.h"
+
+/* ---- simulated data sets ---------------------------------------------- */
+
+typedef struct bench_sim {
+    const char *scene;          /* point, binary, six-star, extended */
+    int width, height, nframes;
+    double photons;             /* per frame; 0 = noiseless */
+    double sep_lod;             /* binary separation in lambda/D */
+    double pa_deg, dm_mag;      /* binary position angle and dm */
+    uint64_t seed;
+    double plate_scale_arcsec;  /* 0 = Nyquist for the mask */
+    double r0_m;                /* Fried parameter at 500 nm */
+    double wind_mps;
+    double saturation_adu;      /* detector clip level (photon frames) */
+} bench_sim;
+
+/* The paper's setting: 100 frames of 128^2, 17-hole mask, r0 0.2 m, wind
+ * 10 m/s, 500 nm, Nyquist, noiseless; binary 6 lambda/D, PA 30, dm 1;
+ * saturation 1e9 ADU (no clipping unless asked for). */
+void bench_sim_defaults(bench_sim *s);
+
+/* Simulate s into cube_path: the frames, then the TRUTH and COPHASED image
+ * extensions, with a header as `specklab sim` writes it (PLTSCALE,
+ * WAVELEN, SIMPHOT, SIMGAIN, SIMSEED, SIMR0, SIMWIND, NYQUIST, LODPX and,
+ * for a binary, BINSEP, BINSEPPX, BINPA, BINDM).  psf_path (may be NULL)
+ * also receives the COPHASED image alone as a 2-D FITS, which is what
+ * pipeline_opts.target_path takes.  Plans with FFTW_ESTIMATE: simulation
+ * time is not what is measured.  Frames are streamed to disk. */
+int bench_sim_write(const bench_sim *s, const char *cube_path,
+                    const char *psf_path, sl_err *err);
+
+/* What a reconstruction is scored against, read back from a cube written
+ * by bench_sim_write or `specklab sim`. */
+typedef struct bench_truth {
+    int width, height;
+    float *cophased;            /* width*height, owned */
+    int binary;                 /* BINSEPPX, BINPA and BINDM present */
+    double sep_px, pa_deg, dm_mag;
+    double plate_scale_arcsec;  /* NAN when absent */
+} bench_truth;
+
+int bench_truth_read(bench_truth *t, const char *cube_path, sl_err *err);
+void bench_truth_clear(bench_truth *t);
+
+/* ---- measurement ------------------------------------------------------- */
+
+#define BENCH_MAX_REPEAT 32
+
+typedef struct bench_timing {
+    int repeat;                 /* runs made */
+    double wall_s, cpu_s;       /* medians over the runs */
+    double wall_first_s;        /* the first (cold) run */
+    double cpu_first_s;
+    double peak_rss_mb;         /* the child's ru_maxrss */
+    int nframes, width, height; /* of the reconstruction */
+    /* What the pipeline chose, from its header (NAN when absent):
+     * RECR2, RECNANG, RECNTRI (direct: closure triangles stored). */
+    double r2_px, nangles, ntriples;
+} bench_timing;
+
+/* Run pipeline_run on cube with o, repeat (1..BENCH_MAX_REPEAT) times in
+ * one forked child, timing each run (CLOCK_MONOTONIC; getrusage CPU of
+ * all threads).  img (w*h floats, w x h the cube's frame size) receives
+ * the last run's image.  Returns SL_OK; the pipeline's own status with its
+ * message; SL_EFORMAT when the image is not w x h; SL_EIO when the child
+ * could not be started or died ("killed by signal N").  Flushes stdio
+ * before forking (buffered output would otherwise be written twice). */
+int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
+                  float *img, int w, int h, bench_timing *t, sl_err *err);
+/* ru_maxrss (MB) of a forked child that exits at once: the floor that
+ * every bench_measure peak includes.  NAN if fork fails. */
+double bench_baseline_rss_mb(void);
+
+/* ---- scores ------------------------------------------------------------ */
+
+#define BENCH_HP_SIGMA_PX 2.0
+
+typedef struct bench_score {
+    double c, c_hp;             /* see the header comment; NAN on failure */
+    double shift_x_px, shift_y_px; /* registration shift of img onto truth */
+    int binary_found;           /* metrics_binary found two components */
+    double sep_px, pa_deg, dm_mag;          /* measured; NAN if none */
+    double sep_err_px, pa_err_deg, dm_err_mag; /* measured - truth; NAN
+                                                 when not a binary/none */
+} bench_score;
+
+/* Every score NAN, binary_found 0 (what a failed run reports). */
+void bench_score_init(bench_score *s);
+/* Score img (t->width x t->height) against t.  SL_EDATA for non-finite
+ * pixels (scores stay NAN); a binary that is not found leaves the binary
+ * fields NAN and is not an error. */
+int bench_score_image(const float *img, const bench_truth *t,
+                      double hp_sigma_px, bench_score *s, sl_err *err);
+/* out = in - (in smoothed by a periodic Gaussian of sigma_px), separable,
+ * truncated at 4 sigma.  in and out may alias.  Cost 2 w h (8 sigma + 1)
+ * multiply-adds; allocates one w*h scratch.  SL_EINVAL for sigma <= 0. */
+int bench_highpass(const float *in, float *out, int w, int h,
+                   double sigma_px);
+
+/* ---- Pareto front and chart -------------------------------------------- */
+
+/* front[i] = 1 when no other point is at least as good in both x and y
+ * and better in one (smaller is better in both); points with a non-finite
+ * coordinate are never on the front and dominate nothing.  Equal points
+ * are all on the front.  O(n^2). */
+void bench_pareto(const double *x, const double *y, int n,
+                  unsigned char *front);
+
+typedef struct bench_series {
+    const char *name;           /* legend text */
+    plot_shape shape;
+    int filled;
+    float grey;                 /* 0 black .. 0.7 light grey */
+} bench_series;
+
+typedef struct bench_point {
+    double time_s, err;         /* x and y; <= 0 or non-finite: not drawn */
+    int series;                 /* index into series */
+    int panel;                  /* index into panel titles */
+    int front;                  /* on its panel's Pareto front */
+} bench_point;
+
+/* Log-log chart of run time (x) against error (y), one panel per title
+ * (laid out 3 across, at most 12), markers per series, each panel's front
+ * points joined by a line in order of time, a legend below.  Axes span the
+ * decades of the drawn points (shared by all panels, so they compare). */
+int bench_plot_png(const char *path, const bench_point *pts, int n,
+                   const bench_series *series, int nseries,
+                   const char *const *panels, int npanels, sl_err *err);
+
+#endif

@@ -339,6 +339,16 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
     to.photons_per_frame = photons;
     to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
+    /* Bias (tsm.h): photons known -> photon bias plus the read noise the
+     * simulator records (SIMRDN e-, SIMGAIN e-/adu); unknown (real camera
+     * data) -> the floor TSM measures beyond the pupil cut-off. */
+    double rn_e = 0, gain = 1;
+    const cube_meta *hm = cube_reader_meta(s->rd);
+    if (photons > 0 && cube_meta_get_num(hm, "SIMRDN", &rn_e) == SL_OK && rn_e > 0) {
+        if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
+            gain = 1;
+        to.read_noise_adu = rn_e / gain;
+    }
     tsm *t = NULL, *tr = NULL;
     double *ps_ref = NULL, *ps_tgt = NULL;
     int rc = tsm_sequence(s, &to, &t, err);
@@ -347,7 +357,18 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     if (ref) {
         tsm_opts ro = to;
         double gr;
-        photon_params(o, cube_reader_meta(ref->rd), &ro.photons_per_frame, &gr);
+        hm = cube_reader_meta(ref->rd);
+        photon_params(o, hm, &ro.photons_per_frame, &gr);
+        rn_e = 0, gain = 1, ro.read_noise_adu = 0;
+        if (ro.photons_per_frame > 0 && cube_meta_get_num(hm, "SIMRDN", &rn_e) == SL_OK &&
+            rn_e > 0) {
+            if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
+                gain = 1;
+            ro.read_noise_adu = rn_e / gain;
+        }
+        /* the target is a model PSF: noiseless, no bias to remove */
+        tsm_opts tt = to;
+        tt.bias = TSM_BIAS_NONE;
         size_t np = (size_t)tsm_nangles(t) * tsm_nfreq(t);
         ps_ref = malloc(np * sizeof *ps_ref);
         ps_tgt = o->target_path ? malloc(np * sizeof *ps_tgt) : NULL;
@@ -355,7 +376,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
             rc = sl_seterr(err, SL_ENOMEM, "out of memory");
         else if ((rc = tsm_sequence(ref, &ro, &tr, err)) == SL_OK &&
                  (rc = tsm_power(tr, ps_ref)) == SL_OK && o->target_path)
-            rc = tsm_target_power(o->target_path, &to, s->w, s->h, ps_tgt, err);
+            rc = tsm_target_power(o->target_path, &tt, s->w, s->h, ps_tgt, err);
         if (rc == SL_OK)
             rc = tsm_set_reference(t, ps_ref, ps_tgt, o->wiener > 0 ? o->wiener : 0.05);
         if (rc != SL_OK)
@@ -367,6 +388,11 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     }
     cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
+    double level = 0;
+    tsm_noise_level(t, &level);
+    cube_meta_set_str(m, "RECBIAS", photons > 0 ? "photon" : "floor",
+                      "TSM white-noise bias: photon count or measured floor");
+    cube_meta_set_num(m, "RECNOISE", level, "TSM white-noise power subtracted");
 free_all:
     tsm_free(t);
     tsm_free(tr);

@@ -55,7 +55,7 @@ static const char defaults_text[] =
     "\n"
     "[daemon]\n"
     "# socket=./var/specklabd.sock (empty: DATA_DIR/specklabd.sock)\n"
-    "reconstruct=tsm\n"
+    "reconstruct=tsm-fourier\n"
     "projections=0\n"
     "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
     "fftw=measure\n"
@@ -331,7 +331,7 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
     get_str(kf, "daemon", "socket", "", &s);
     c->socket = *s ? absolute(s) : g_build_filename(c->data_dir, "specklabd.sock", NULL);
     g_free(s);
-    get_str(kf, "daemon", "reconstruct", "tsm", &c->reconstruct);
+    get_str(kf, "daemon", "reconstruct", "tsm-fourier", &c->reconstruct);
     if (!config_method_valid(c->reconstruct))
         return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected tsm, "
                          "tsm-fourier, direct or none", c->reconstruct);

@@ -345,7 +345,7 @@ static char *cmd_reconstruct(request *rq)
         arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply))
         goto free_method;
     if (!method)
-        method = g_strdup(strcmp(d->cfg->reconstruct, "none") ? d->cfg->reconstruct : "tsm");
+        method = g_strdup(strcmp(d->cfg->reconstruct, "none") ? d->cfg->reconstruct : "tsm-fourier");
     if (!config_method_valid(method) || !strcmp(method, "none")) {
         reply = reply_err(rq, "bad-request", "method must be tsm, tsm-fourier or direct, got "
                           "'%.40s'", method);

@@ -240,14 +240,14 @@ FUZZ_MASK_SRC  := recon/mask.c recon/rng.c recon/status.c
 FUZZ_SCENE_SRC := recon/scene.c recon/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/status.c
 
-$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/cube.h recon/cube_guard.h
+$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/cube.h recon/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $(shell $(PKG) --cflags cfitsio) $< $(FUZZ_FITS_SRC) -o $@ \
 	    $(shell $(PKG) --libs cfitsio) -lm
-$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/mask.h
+$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/mask.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_MASK_SRC) -o $@ -lm
-$(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/scene.h
+$(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/scene.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_SCENE_SRC) -o $@ -lm
 $(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stage.h drivers/stage_modbus.h

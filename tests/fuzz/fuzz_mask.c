@@ -25,43 +25,12 @@
 #include <unistd.h>
 
 #include "mask.h"
+#define FUZZ_NAME "fuzz_mask"
+#include "fuzz_util.h"
 
 #define GRID 32
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-static int mem_file(const uint8_t *data, size_t size, char *path, size_t n)
-{
-    int fd = memfd_create("fuzz_mask", MFD_CLOEXEC);
-    if (fd < 0)
-        return -1;
-    for (size_t off = 0; off < size;) {
-        ssize_t w = write(fd, data + off, size - off);
-        if (w <= 0) {
-            close(fd);
-            return -1;
-        }
-        off += (size_t)w;
-    }
-    snprintf(path, n, "/proc/self/fd/%d", fd);
-    return fd;
-}
-
-static void require(int cond, const char *what, const char *msg)
-{
-    if (!cond) {
-        fprintf(stderr, "fuzz_mask: contract broken: %s (%s)\n", what, msg);
-        abort();
-    }
-}
-
-static void check_failure(int rc, const sl_err *e, const char *what)
-{
-    require(rc < 0 && rc >= SL_EEND, what, "status outside SL_E*");
-    require(e->code == rc, what, "sl_err code differs from the status");
-    require(memchr(e->msg, '\0', sizeof e->msg) && e->msg[0], what,
-            "empty or unterminated message");
-}
 
 static void render(const mask *m, double dx_m, int must_fit, float *pupil)
 {

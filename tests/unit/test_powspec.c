@@ -6,42 +6,16 @@
 
 #include "powspec.h"
 #include "rng.h"
+#include "speckle_gen.h"
 #include "tcheck.h"
 
 #include <stdlib.h>
 
-static int sf(int i, int n) { return i <= (n - 1) / 2 ? i : i - n; }
 
 /* Speckle frame generator: circular pupil of diameter n/2 (Nyquist),
  * smoothed Gaussian random phase of rms `rms_rad`; object = point sources
  * placed with exact Fourier phase ramps.  Frame = IFFT(O * OTF) scaled to
  * `flux`; with `photons` the frame is g * Poisson(frame / g). */
-typedef struct gen {
-    int n;
-    fftw_complex *a, *b;
-    fftw_plan fa, ba, fb;
-} gen;
-
-static void gen_init(gen *g, int n)
-{
-    size_t N = (size_t)n * n;
-    g->n = n;
-    g->a = fftw_alloc_complex(N);
-    g->b = fftw_alloc_complex(N);
-    g->fa = fftw_plan_dft_2d(n, n, g->a, g->a, FFTW_FORWARD, FFTW_ESTIMATE);
-    g->ba = fftw_plan_dft_2d(n, n, g->a, g->a, FFTW_BACKWARD, FFTW_ESTIMATE);
-    g->fb = fftw_plan_dft_2d(n, n, g->b, g->b, FFTW_FORWARD, FFTW_ESTIMATE);
-}
-
-static void gen_done(gen *g)
-{
-    fftw_destroy_plan(g->fa);
-    fftw_destroy_plan(g->ba);
-    fftw_destroy_plan(g->fb);
-    fftw_free(g->a);
-    fftw_free(g->b);
-}
-
 static void gen_frame(gen *g, rng *r, double rms_rad, int np, const double *x,
                       const double *y, const double *f, double flux,
                       double gain, int photons, float *out)

@@ -13,36 +13,9 @@
 #include <string.h>
 #include <time.h>
 
-#define U3V_CLASS 0xEF
-#define U3V_SUBCLASS 0x05
-#define QUEUE_CAP (2 * USB_HOTPLUG_MAX_DEVICES)
+#include "usb_int.h"
 
-typedef struct queued {
-    usb_event_kind kind;
-    usb_dev_info dev;
-} queued;
-
-struct usb {
-    libusb_context *ctx;
-    sl_err err;
-    char sysfs_root[512]; /* "/sys" or "$UMOCKDEV_DIR/sys" */
-    /* hot-plug: allocated at start, reused by every poll */
-    int hp_mode;
-    usb_hotplug_fn hp_fn;
-    void *hp_ud;
-    libusb_hotplug_callback_handle hp_handle;
-    int rescan_ms;
-    double last_scan_s;
-    usb_dev_info *known; /* devices seen (for LEFT details / rescans) */
-    int n_known;
-    usb_dev_info *scan; /* rescan scratch, USB_HOTPLUG_MAX_DEVICES */
-    queued *queue;      /* QUEUE_CAP, drained by every usb_poll */
-    int q_len;
-    long dropped;
-    int delivering; /* usb_poll called from a hot-plug callback */
-};
-
-static double now_s(void)
+double usb_now_s(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -117,7 +90,7 @@ static unsigned u3v_ifaces(libusb_device *dev)
     return mask;
 }
 
-static void fill_info(const usb *u, libusb_device *dev, usb_dev_info *d)
+void usb_fill_info(const usb *u, libusb_device *dev, usb_dev_info *d)
 {
     struct libusb_device_descriptor dd;
     memset(d, 0, sizeof *d);
@@ -189,7 +162,7 @@ int usb_list(usb *u, usb_dev_info *devs, int cap, int *count)
         return sl_seterr(&u->err, SL_EIO, "usb: cannot list devices: %s",
                          libusb_strerror((int)n));
     for (ssize_t i = 0; i < n && i < cap; i++)
-        fill_info(u, list[i], &devs[i]);
+        usb_fill_info(u, list[i], &devs[i]);
     *count = (int)n;
     libusb_free_device_list(list, 1);
     return SL_OK;
@@ -395,7 +368,7 @@ int usb_diagnose(usb *u, unsigned flags, usb_report_fn fn, void *ud)
         return sl_seterr(&u->err, SL_EIO, "usb: cannot list devices: %s",
                          libusb_strerror((int)n));
     for (ssize_t i = 0; i < n; i++) {
-        fill_info(u, list[i], &d);
+        usb_fill_info(u, list[i], &d);
         if (d.is_u3v || (flags & USB_DIAG_ALL_DEVICES))
             diagnose_one(list[i], &d, fn, ud);
     }
@@ -431,196 +404,6 @@ int usb_diagnose_device(usb *u, const usb_dev_info *d, usb_report_fn fn,
     return SL_OK;
 }
 
-/* ---- hot-plug ---- */
-
-static void enqueue(usb *u, usb_event_kind kind, const usb_dev_info *d)
-{
-    if (u->q_len >= QUEUE_CAP) {
-        u->dropped++;
-        return;
-    }
-    u->queue[u->q_len].kind = kind;
-    u->queue[u->q_len++].dev = *d;
-}
-
-static int same_device(const usb_dev_info *a, const usb_dev_info *b)
-{
-    return a->bus == b->bus && a->address == b->address && a->vid == b->vid &&
-           a->pid == b->pid && a->n_ports == b->n_ports &&
-           memcmp(a->port_path, b->port_path, (size_t)a->n_ports) == 0;
-}
-
-static void known_add(usb *u, const usb_dev_info *d)
-{
-    if (u->n_known < USB_HOTPLUG_MAX_DEVICES)
-        u->known[u->n_known++] = *d;
-}
-
-static void known_remove(usb *u, int i)
-{
-    u->known[i] = u->known[--u->n_known];
-}
-
-static int LIBUSB_CALL on_hotplug(libusb_context *ctx, libusb_device *dev,
-                                  libusb_hotplug_event ev, void *ud)
-{
-    usb *u = ud;
-    usb_dev_info d;
-    (void)ctx;
-    /* The descriptor cache outlives the unplug, so LEFT still has
-     * bus/address/vid/pid; strings come from the arrival record. */
-    fill_info(u, dev, &d);
-    if (ev == LIBUSB_HOTPLUG_EVENT_DEVICE_ARRIVED) {
-        known_add(u, &d);
-        enqueue(u, USB_EVENT_ARRIVED, &d);
-        return 0;
-    }
-    for (int i = 0; i < u->n_known; i++)
-        if (u->known[i].bus == d.bus && u->known[i].address == d.address) {
-            d = u->known[i];
-            known_remove(u, i);
-            break;
-        }
-    enqueue(u, USB_EVENT_LEFT, &d);
-    return 0; /* stay registered */
-}
-
-static int rescan(usb *u)
-{
-    int n = 0, r = usb_list(u, u->scan, USB_HOTPLUG_MAX_DEVICES, &n);
-    if (r != SL_OK)
-        return r;
-    if (n > USB_HOTPLUG_MAX_DEVICES)
-        n = USB_HOTPLUG_MAX_DEVICES;
-    for (int i = u->n_known - 1; i >= 0; i--) {
-        int still = 0;
-        for (int j = 0; j < n && !still; j++)
-            still = same_device(&u->known[i], &u->scan[j]);
-        if (!still) {
-            enqueue(u, USB_EVENT_LEFT, &u->known[i]);
-            known_remove(u, i);
-        }
-    }
-    for (int j = 0; j < n; j++) {
-        int seen = 0;
-        for (int i = 0; i < u->n_known && !seen; i++)
-            seen = same_device(&u->known[i], &u->scan[j]);
-        if (!seen) {
-            known_add(u, &u->scan[j]);
-            enqueue(u, USB_EVENT_ARRIVED, &u->scan[j]);
-        }
-    }
-    u->last_scan_s = now_s();
-    return SL_OK;
-}
-
-static int hp_alloc(usb *u, usb_hotplug_fn fn, void *ud)
-{
-    if (u->hp_mode != USB_HOTPLUG_OFF)
-        return sl_seterr(&u->err, SL_EINVAL, "usb: hot-plug already started");
-    if (!fn)
-        return sl_seterr(&u->err, SL_EINVAL, "usb: no hot-plug callback");
-    u->known = calloc(USB_HOTPLUG_MAX_DEVICES, sizeof *u->known);
-    u->scan = calloc(USB_HOTPLUG_MAX_DEVICES, sizeof *u->scan);
-    u->queue = calloc(QUEUE_CAP, sizeof *u->queue);
-    if (!u->known || !u->scan || !u->queue) {
-        usb_hotplug_stop(u);
-        return sl_seterr(&u->err, SL_ENOMEM, "usb: out of memory");
-    }
-    u->hp_fn = fn;
-    u->hp_ud = ud;
-    u->n_known = u->q_len = 0;
-    u->dropped = 0;
-    return SL_OK;
-}
-
-int usb_hotplug_start_rescan(usb *u, int interval_ms, usb_hotplug_fn fn,
-                             void *ud)
-{
-    int r = hp_alloc(u, fn, ud);
-    if (r != SL_OK)
-        return r;
-    u->hp_mode = USB_HOTPLUG_RESCAN;
-    u->rescan_ms = interval_ms > 0 ? interval_ms : 0;
-    r = rescan(u); /* devices present now arrive on the first poll */
-    if (r != SL_OK)
-        usb_hotplug_stop(u);
-    return r;
-}
-
-int usb_hotplug_start(usb *u, usb_hotplug_fn fn, void *ud)
-{
-    int r;
-    if (!libusb_has_capability(LIBUSB_CAP_HAS_HOTPLUG))
-        return usb_hotplug_start_rescan(u, USB_RESCAN_DEFAULT_MS, fn, ud);
-    r = hp_alloc(u, fn, ud);
-    if (r != SL_OK)
-        return r;
-    /* ENUMERATE: libusb calls on_hotplug now for devices present. */
-    r = libusb_hotplug_register_callback(
-        u->ctx,
-        LIBUSB_HOTPLUG_EVENT_DEVICE_ARRIVED | LIBUSB_HOTPLUG_EVENT_DEVICE_LEFT,
-        LIBUSB_HOTPLUG_ENUMERATE, LIBUSB_HOTPLUG_MATCH_ANY,
-        LIBUSB_HOTPLUG_MATCH_ANY, LIBUSB_HOTPLUG_MATCH_ANY, on_hotplug, u,
-        &u->hp_handle);
-    if (r != LIBUSB_SUCCESS) {
-        usb_hotplug_stop(u);
-        return sl_seterr(&u->err, SL_EIO, "usb: cannot register hot-plug "
-                         "callback: %s", libusb_strerror(r));
-    }
-    u->hp_mode = USB_HOTPLUG_NATIVE;
-    return SL_OK;
-}
-
-void usb_hotplug_stop(usb *u)
-{
-    if (!u)
-        return;
-    if (u->hp_mode == USB_HOTPLUG_NATIVE)
-        libusb_hotplug_deregister_callback(u->ctx, u->hp_handle);
-    u->hp_mode = USB_HOTPLUG_OFF;
-    free(u->known);
-    free(u->scan);
-    free(u->queue);
-    u->known = u->scan = NULL;
-    u->queue = NULL;
-    u->n_known = u->q_len = 0;
-    u->hp_fn = NULL;
-}
-
-int usb_hotplug_mode(const usb *u) { return u->hp_mode; }
-long usb_hotplug_dropped(const usb *u) { return u->dropped; }
-
-int usb_poll(usb *u, int timeout_ms)
-{
-    struct timeval tv;
-    int r;
-    if (timeout_ms < 0)
-        timeout_ms = 0;
-    tv.tv_sec = timeout_ms / 1000;
-    tv.tv_usec = (timeout_ms % 1000) * 1000;
-    r = libusb_handle_events_timeout_completed(u->ctx, &tv, NULL);
-    if (r != 0 && r != LIBUSB_ERROR_INTERRUPTED && r != LIBUSB_ERROR_TIMEOUT)
-        return sl_seterr(&u->err, SL_EIO, "usb: event handling failed: %s",
-                         libusb_strerror(r));
-    if (u->hp_mode == USB_HOTPLUG_RESCAN &&
-        now_s() - u->last_scan_s >= 1e-3 * u->rescan_ms) {
-        r = rescan(u);
-        if (r != SL_OK)
-            return r;
-    }
-    if (u->hp_mode == USB_HOTPLUG_OFF || u->delivering)
-        return SL_OK;
-    /* The callback may enqueue more (it may list devices): loop on the
-     * live length, then empty the queue. */
-    u->delivering = 1;
-    for (int i = 0; i < u->q_len && u->hp_fn; i++)
-        u->hp_fn(u->queue[i].kind, &u->queue[i].dev, u->hp_ud);
-    u->q_len = 0;
-    u->delivering = 0;
-    return SL_OK;
-}
-
 /* ---- recovery ---- */
 
 int usb_reset(usb *u, int bus, int address, sl_err *err)
@@ -636,7 +419,7 @@ int usb_reset(usb *u, int bus, int address, sl_err *err)
                   "devices again)", bus, address);
         goto out;
     }
-    fill_info(u, dev, &d);
+    usb_fill_info(u, dev, &d);
     usb_dev_label(&d, label, sizeof label);
     r = libusb_open(dev, &h);
     if (r != 0) {

@@ -89,6 +89,21 @@ int cat_begin(catalog *c, const char *what);
 int cat_commit(catalog *c, const char *what);
 /* Roll back if a transaction is open; keeps c->err. */
 void cat_rollback(catalog *c);
+/* End what cat_begin opened: commit when rc is SL_OK, else roll back and
+ * return rc unchanged (c->err keeps the first failure's message). */
+int cat_end(catalog *c, int rc, const char *what);
+/* Run an INSERT statement in a transaction of its own; *id_out (may be
+ * NULL) gets the new row's id. */
+int cat_insert(catalog *c, sqlite3_stmt *st, const char *what,
+               int64_t *id_out);
+
+/* Step a query to its end, calling row(c, st, ctx) on each result row;
+ * stops at the first row that returns other than SL_OK and returns that.
+ * A failed step becomes "catalogue PATH: WHAT: ...".  cat_done(st) always,
+ * so column text is only valid inside row. */
+typedef int (*cat_row_fn)(catalog *c, sqlite3_stmt *st, void *ctx);
+int cat_each(catalog *c, sqlite3_stmt *st, const char *what, cat_row_fn row,
+             void *ctx);
 
 /* Step a statement that returns no row (or whose rows are ignored) to the
  * end, then cat_done it.  Returns SL_OK or the mapped error. */

@@ -71,11 +71,7 @@ int catalog_screen_upsert(catalog *c, const char *name, int slot,
     }
     if (rc == SL_OK)
         rc = find_id(c, CS_SCREEN_ID, "screen", name, id_out);
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    return cat_commit(c, what);
+    return cat_end(c, rc, what);
 }
 
 int catalog_screen_find(catalog *c, const char *name, int64_t *id_out)
@@ -83,29 +79,31 @@ int catalog_screen_find(catalog *c, const char *name, int64_t *id_out)
     return find_id(c, CS_SCREEN_ID, "screen", name, id_out);
 }
 
+/* One row of the screen list, handed to the caller's fn. */
+typedef struct screen_each { catalog_screen_fn fn; void *user; } screen_each;
+
+static int screen_row(catalog *c, sqlite3_stmt *st, void *ctx)
+{
+    const screen_each *e = ctx;
+    (void)c;
+    catalog_screen s;
+    s.id = cat_col_int64(st, 0);
+    s.name = cat_col_text(st, 1);
+    s.slot = sqlite3_column_type(st, 2) == SQLITE_NULL
+                 ? -1
+                 : sqlite3_column_int(st, 2);
+    s.description = cat_col_text(st, 3);
+    s.created_ms = cat_col_int64(st, 4);
+    s.last_r0_m = cat_col_double(st, 5);
+    s.last_r0_ms = cat_col_int64(st, 6);
+    return e->fn(&s, e->user);
+}
+
 int catalog_screen_list(catalog *c, catalog_screen_fn fn, void *user)
 {
     sqlite3_stmt *st = cat_stmt(c, CS_SCREEN_LIST);
-    int rc, ret = SL_OK;
-    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
-        catalog_screen s;
-        s.id = cat_col_int64(st, 0);
-        s.name = cat_col_text(st, 1);
-        s.slot = sqlite3_column_type(st, 2) == SQLITE_NULL
-                     ? -1
-                     : sqlite3_column_int(st, 2);
-        s.description = cat_col_text(st, 3);
-        s.created_ms = cat_col_int64(st, 4);
-        s.last_r0_m = cat_col_double(st, 5);
-        s.last_r0_ms = cat_col_int64(st, 6);
-        ret = fn(&s, user);
-        if (ret != SL_OK)
-            break;
-    }
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
-        ret = cat_sqlerr(c, rc, "listing screens");
-    cat_done(st);
-    return ret;
+    screen_each e = {fn, user};
+    return cat_each(c, st, "listing screens", screen_row, &e);
 }
 
 /* ---- masks ---- */
@@ -180,11 +178,7 @@ int catalog_mask_upsert(catalog *c, const catalog_mask *m, int64_t *id_out)
         sqlite3_bind_double(st, 4, m->y_m[i]);
         rc = cat_run(c, st, what);
     }
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, what);
+    rc = cat_end(c, rc, what);
     if (rc == SL_OK && id_out)
         *id_out = id;
     return rc;
@@ -313,14 +307,29 @@ int catalog_r0_add(catalog *c, const catalog_r0 *r, int64_t *id_out)
             rc = cat_seterr(c, SL_EINVAL, "catalogue %s: %s: run %s is not "
                             "in the catalogue", c->path, what, run);
     }
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, what);
+    rc = cat_end(c, rc, what);
     if (rc == SL_OK && id_out)
         *id_out = sqlite3_last_insert_rowid(c->db);
     return rc;
+}
+
+/* One row of the r0 list, handed to the caller's fn. */
+typedef struct r0_each { catalog_r0_fn fn; void *user; } r0_each;
+
+static int r0_row(catalog *c, sqlite3_stmt *st, void *ctx)
+{
+    const r0_each *e = ctx;
+    (void)c;
+    catalog_r0 r;
+    r.id = cat_col_int64(st, 0);
+    r.screen_name = cat_col_text(st, 1);
+    r.run_uuid = cat_col_text(st, 2);
+    r.measured_ms = cat_col_int64(st, 3);
+    r.r0_m = cat_col_double(st, 4);
+    r.seeing_arcsec = cat_col_double(st, 5);
+    r.wavelength_m = cat_col_double(st, 6);
+    r.method = cat_col_text(st, 7);
+    return e->fn(&r, e->user);
 }
 
 int catalog_r0_list(catalog *c, const char *screen_name, int64_t since_ms,
@@ -329,25 +338,8 @@ int catalog_r0_list(catalog *c, const char *screen_name, int64_t since_ms,
     sqlite3_stmt *st = cat_stmt(c, CS_R0_LIST);
     cat_bind_text(st, 1, screen_name);
     sqlite3_bind_int64(st, 2, since_ms > 0 ? since_ms : INT64_MIN);
-    int rc, ret = SL_OK;
-    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
-        catalog_r0 r;
-        r.id = cat_col_int64(st, 0);
-        r.screen_name = cat_col_text(st, 1);
-        r.run_uuid = cat_col_text(st, 2);
-        r.measured_ms = cat_col_int64(st, 3);
-        r.r0_m = cat_col_double(st, 4);
-        r.seeing_arcsec = cat_col_double(st, 5);
-        r.wavelength_m = cat_col_double(st, 6);
-        r.method = cat_col_text(st, 7);
-        ret = fn(&r, user);
-        if (ret != SL_OK)
-            break;
-    }
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
-        ret = cat_sqlerr(c, rc, "listing r0 measurements");
-    cat_done(st);
-    return ret;
+    r0_each e = {fn, user};
+    return cat_each(c, st, "listing r0 measurements", r0_row, &e);
 }
 
 /* Bind the screen and time range shared by the CS_STATS_* statements. */
@@ -431,12 +423,8 @@ int catalog_screen_stats(catalog *c, const char *screen_name, int64_t since_ms,
     rc = cat_run(c, cat_stmt(c, CS_BEGIN_READ), "computing screen statistics");
     if (rc != SL_OK)
         return rc;
-    rc = stats_read(c, o.screen_id, lo, hi, &o);
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, "computing screen statistics");
+    rc = cat_end(c, stats_read(c, o.screen_id, lo, hi, &o),
+                 "computing screen statistics");
     if (rc == SL_OK)
         *out = o;
     return rc;
@@ -482,18 +470,37 @@ int catalog_bench_insert(catalog *c, const catalog_bench *b, int64_t *id_out)
     sqlite3_bind_double(st, 11, b->wall_s);
     for (int i = 1; i < (int)(sizeof m / sizeof m[0]); i++)
         cat_bind_double(st, 11 + i, m[i]); /* cpu_s .. dm_err_mag: 12..18 */
-    rc = cat_begin(c, what);
-    if (rc == SL_OK)
-        rc = cat_run(c, st, what);
-    if (rc != SL_OK) {
-        cat_done(st);
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, what);
-    if (rc == SL_OK && id_out)
-        *id_out = sqlite3_last_insert_rowid(c->db);
-    return rc;
+    return cat_insert(c, st, what, id_out);
+}
+
+/* One row of the bench list, handed to the caller's fn. */
+typedef struct bench_each { catalog_bench_fn fn; void *user; } bench_each;
+
+static int bench_row(catalog *c, sqlite3_stmt *st, void *ctx)
+{
+    const bench_each *e = ctx;
+    (void)c;
+    catalog_bench b;
+    b.id = cat_col_int64(st, 0);
+    b.created_ms = cat_col_int64(st, 1);
+    b.host = cat_col_text(st, 2);
+    b.git_rev = cat_col_text(st, 3);
+    b.method = cat_col_text(st, 4);
+    b.params_json = cat_col_text(st, 5);
+    b.frames = sqlite3_column_int(st, 6);
+    b.width = sqlite3_column_int(st, 7);
+    b.height = sqlite3_column_int(st, 8);
+    b.photons = cat_col_double(st, 9);
+    b.scene = cat_col_text(st, 10);
+    b.wall_s = cat_col_double(st, 11);
+    b.cpu_s = cat_col_double(st, 12);
+    b.peak_rss_mb = cat_col_double(st, 13);
+    b.err_1mc = cat_col_double(st, 14);
+    b.err_hp = cat_col_double(st, 15);
+    b.sep_err_px = cat_col_double(st, 16);
+    b.pa_err_deg = cat_col_double(st, 17);
+    b.dm_err_mag = cat_col_double(st, 18);
+    return e->fn(&b, e->user);
 }
 
 int catalog_bench_list(catalog *c, const char *method, int64_t since_ms,
@@ -502,34 +509,6 @@ int catalog_bench_list(catalog *c, const char *method, int64_t since_ms,
     sqlite3_stmt *st = cat_stmt(c, CS_BENCH_LIST);
     cat_bind_text(st, 1, method);
     sqlite3_bind_int64(st, 2, since_ms > 0 ? since_ms : INT64_MIN);
-    int rc, ret = SL_OK;
-    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
-        catalog_bench b;
-        b.id = cat_col_int64(st, 0);
-        b.created_ms = cat_col_int64(st, 1);
-        b.host = cat_col_text(st, 2);
-        b.git_rev = cat_col_text(st, 3);
-        b.method = cat_col_text(st, 4);
-        b.params_json = cat_col_text(st, 5);
-        b.frames = sqlite3_column_int(st, 6);
-        b.width = sqlite3_column_int(st, 7);
-        b.height = sqlite3_column_int(st, 8);
-        b.photons = cat_col_double(st, 9);
-        b.scene = cat_col_text(st, 10);
-        b.wall_s = cat_col_double(st, 11);
-        b.cpu_s = cat_col_double(st, 12);
-        b.peak_rss_mb = cat_col_double(st, 13);
-        b.err_1mc = cat_col_double(st, 14);
-        b.err_hp = cat_col_double(st, 15);
-        b.sep_err_px = cat_col_double(st, 16);
-        b.pa_err_deg = cat_col_double(st, 17);
-        b.dm_err_mag = cat_col_double(st, 18);
-        ret = fn(&b, user);
-        if (ret != SL_OK)
-            break;
-    }
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
-        ret = cat_sqlerr(c, rc, "listing benchmarks");
-    cat_done(st);
-    return ret;
+    bench_each e = {fn, user};
+    return cat_each(c, st, "listing benchmarks", bench_row, &e);
 }

@@ -71,21 +71,13 @@ int catalog_run_insert(catalog *c, const catalog_run_spec *spec,
     cat_bind_text(st, 7, spec->camera_serial);
     cat_bind_text(st, 8, spec->camera_settings_json);
     sqlite3_bind_int(st, 9, spec->frames_requested);
-    rc = cat_begin(c, what);
-    if (rc == SL_OK)
-        rc = cat_run(c, st, what);
-    if (rc != SL_OK) {
-        if (c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
-            rc = cat_seterr(c, SL_EINVAL,
-                            "catalogue %s: %s: screen id %lld or mask id %lld "
-                            "is not in the catalogue",
-                            c->path, what, (long long)spec->screen_id,
-                            (long long)spec->mask_id);
-        cat_done(st);
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, what);
+    rc = cat_insert(c, st, what, NULL);
+    if (rc != SL_OK && c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
+        rc = cat_seterr(c, SL_EINVAL,
+                        "catalogue %s: %s: screen id %lld or mask id %lld "
+                        "is not in the catalogue",
+                        c->path, what, (long long)spec->screen_id,
+                        (long long)spec->mask_id);
     if (rc == SL_OK && uuid_out)
         memcpy(uuid_out, id, sizeof id);
     return rc;
@@ -175,11 +167,7 @@ int catalog_run_set_state(catalog *c, const char *uuid, catalog_state to,
         sqlite3_bind_int64(st, 4, catalog_now_ms());
         rc = cat_run(c, st, what);
     }
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    return cat_commit(c, what);
+    return cat_end(c, rc, what);
 }
 
 int catalog_run_update_progress(catalog *c, const char *uuid,
@@ -209,11 +197,7 @@ int catalog_run_update_progress(catalog *c, const char *uuid,
         sqlite3_bind_int64(st, 5, catalog_now_ms());
         rc = cat_run(c, st, what);
     }
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    return cat_commit(c, what);
+    return cat_end(c, rc, what);
 }
 
 int catalog_run_set_file(catalog *c, const char *uuid, const char *path,
@@ -236,11 +220,7 @@ int catalog_run_set_file(catalog *c, const char *uuid, const char *path,
         sqlite3_bind_int64(st, 4, catalog_now_ms());
         rc = cat_run(c, st, what);
     }
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
-    return cat_commit(c, what);
+    return cat_end(c, rc, what);
 }
 
 void catalog_run_clear(catalog_run *r)
@@ -330,6 +310,17 @@ int catalog_run_resolve(catalog *c, const char *prefix,
     return status;
 }
 
+/* One row of the run list, handed to the caller's fn. */
+typedef struct run_each { catalog_run_fn fn; void *user; } run_each;
+
+static int run_row(catalog *c, sqlite3_stmt *st, void *ctx)
+{
+    const run_each *e = ctx;
+    catalog_run r;
+    int rc = run_from_row(c, st, &r);
+    return rc == SL_OK ? e->fn(&r, e->user) : rc;
+}
+
 int catalog_run_list(catalog *c, const catalog_run_filter *f,
                      catalog_run_fn fn, void *user)
 {
@@ -344,19 +335,8 @@ int catalog_run_list(catalog *c, const catalog_run_filter *f,
     cat_bind_id(st, 2, f->screen_id);
     sqlite3_bind_int64(st, 3, f->since_ms > 0 ? f->since_ms : INT64_MIN);
     sqlite3_bind_int(st, 4, f->limit > 0 ? f->limit : -1);
-    int rc, ret = SL_OK;
-    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
-        catalog_run r;
-        ret = run_from_row(c, st, &r);
-        if (ret == SL_OK)
-            ret = fn(&r, user);
-        if (ret != SL_OK)
-            break;
-    }
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
-        ret = cat_sqlerr(c, rc, "listing runs");
-    cat_done(st);
-    return ret;
+    run_each e = {fn, user};
+    return cat_each(c, st, "listing runs", run_row, &e);
 }
 
 int catalog_runs_mark_interrupted(catalog *c)
@@ -369,12 +349,8 @@ int catalog_runs_mark_interrupted(catalog *c)
     cat_bind_text(st, 1, "daemon restarted while ");
     sqlite3_bind_int64(st, 2, catalog_now_ms());
     rc = cat_run(c, st, what);
-    if (rc != SL_OK) {
-        cat_rollback(c);
-        return rc;
-    }
     int n = sqlite3_changes(c->db);
-    rc = cat_commit(c, what);
+    rc = cat_end(c, rc, what);
     return rc == SL_OK ? n : rc;
 }
 
@@ -416,57 +392,50 @@ int catalog_recon_insert(catalog *c, const catalog_recon *r, int64_t *id_out)
     for (int i = 1; i < (int)(sizeof m / sizeof m[0]); i++)
         cat_bind_double(st, 7 + i, m[i]); /* sep_px .. c_cophased: 8..15 */
     cat_bind_text(st, 16, r->quality_json);
-    rc = cat_begin(c, what);
-    if (rc == SL_OK)
-        rc = cat_run(c, st, what);
-    if (rc != SL_OK) {
-        if (c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
-            rc = cat_seterr(c, SL_EINVAL, "catalogue %s: %s: run %s is not "
-                            "in the catalogue", c->path, what, id);
-        cat_done(st);
-        cat_rollback(c);
-        return rc;
-    }
-    rc = cat_commit(c, what);
-    if (rc == SL_OK && id_out)
-        *id_out = sqlite3_last_insert_rowid(c->db);
+    rc = cat_insert(c, st, what, id_out);
+    if (rc != SL_OK && c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
+        rc = cat_seterr(c, SL_EINVAL, "catalogue %s: %s: run %s is not "
+                        "in the catalogue", c->path, what, id);
     return rc;
+}
+
+/* One row of the reconstruction list, handed to the caller's fn. */
+typedef struct recon_each { catalog_recon_fn fn; void *user; } recon_each;
+
+static int recon_row(catalog *c, sqlite3_stmt *st, void *ctx)
+{
+    const recon_each *e = ctx;
+    (void)c;
+    catalog_recon r;
+    r.id = cat_col_int64(st, 0);
+    r.run_uuid = cat_col_text(st, 1);
+    r.method = cat_col_text(st, 2);
+    r.params_json = cat_col_text(st, 3);
+    r.started_ms = cat_col_int64(st, 4);
+    r.elapsed_s = cat_col_double(st, 5);
+    r.output_fits = cat_col_text(st, 6);
+    r.output_png = cat_col_text(st, 7);
+    r.sep_px = cat_col_double(st, 8);
+    r.sep_err_px = cat_col_double(st, 9);
+    r.pa_deg = cat_col_double(st, 10);
+    r.pa_err_deg = cat_col_double(st, 11);
+    r.dm_mag = cat_col_double(st, 12);
+    r.dm_err_mag = cat_col_double(st, 13);
+    r.sep_arcsec = cat_col_double(st, 14);
+    r.c_cophased = cat_col_double(st, 15);
+    r.quality_json = cat_col_text(st, 16);
+    return e->fn(&r, e->user);
 }
 
 int catalog_recon_list(catalog *c, const char *run_uuid, catalog_recon_fn fn,
                        void *user)
 {
     char id[CATALOG_UUID_LEN + 1];
-    int rc = cat_uuid_norm(c, run_uuid, id), ret = SL_OK;
+    int rc = cat_uuid_norm(c, run_uuid, id);
     if (rc != SL_OK)
         return rc;
     sqlite3_stmt *st = cat_stmt(c, CS_RECON_LIST);
     cat_bind_text(st, 1, id);
-    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
-        catalog_recon r;
-        r.id = cat_col_int64(st, 0);
-        r.run_uuid = cat_col_text(st, 1);
-        r.method = cat_col_text(st, 2);
-        r.params_json = cat_col_text(st, 3);
-        r.started_ms = cat_col_int64(st, 4);
-        r.elapsed_s = cat_col_double(st, 5);
-        r.output_fits = cat_col_text(st, 6);
-        r.output_png = cat_col_text(st, 7);
-        r.sep_px = cat_col_double(st, 8);
-        r.sep_err_px = cat_col_double(st, 9);
-        r.pa_deg = cat_col_double(st, 10);
-        r.pa_err_deg = cat_col_double(st, 11);
-        r.dm_mag = cat_col_double(st, 12);
-        r.dm_err_mag = cat_col_double(st, 13);
-        r.sep_arcsec = cat_col_double(st, 14);
-        r.c_cophased = cat_col_double(st, 15);
-        r.quality_json = cat_col_text(st, 16);
-        ret = fn(&r, user);
-        if (ret != SL_OK)
-            break;
-    }
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
-        ret = cat_sqlerr(c, rc, "listing reconstructions");
-    cat_done(st);
-    return ret;
+    recon_each e = {fn, user};
+    return cat_each(c, st, "listing reconstructions", recon_row, &e);
 }

@@ -141,6 +141,42 @@ void cat_rollback(catalog *c)
     cat_done(c->st[CS_ROLLBACK]);
 }
 
+int cat_end(catalog *c, int rc, const char *what)
+{
+    if (rc != SL_OK) {
+        cat_rollback(c);
+        return rc;
+    }
+    return cat_commit(c, what);
+}
+
+int cat_insert(catalog *c, sqlite3_stmt *st, const char *what,
+               int64_t *id_out)
+{
+    int rc = cat_begin(c, what);
+    if (rc != SL_OK) {
+        cat_done(st);
+        return rc;
+    }
+    rc = cat_end(c, cat_run(c, st, what), what);
+    if (rc == SL_OK && id_out)
+        *id_out = sqlite3_last_insert_rowid(c->db);
+    return rc;
+}
+
+int cat_each(catalog *c, sqlite3_stmt *st, const char *what, cat_row_fn row,
+             void *ctx)
+{
+    int rc, ret = SL_OK;
+    while ((rc = sqlite3_step(st)) == SQLITE_ROW)
+        if ((ret = row(c, st, ctx)) != SL_OK)
+            break;
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE)
+        ret = cat_sqlerr(c, rc, what);
+    cat_done(st);
+    return ret;
+}
+
 int cat_bind_text(sqlite3_stmt *st, int i, const char *s)
 {
     return s ? sqlite3_bind_text(st, i, s, -1, SQLITE_TRANSIENT)

@@ -44,7 +44,9 @@ static void tmp_remove(tmpdir *d)
 /* d->buf[i] = dir/name */
 static const char *tmp_path(tmpdir *d, int i, const char *name)
 {
-    snprintf(d->buf[i], sizeof d->buf[i], "%s/%s", d->dir, name);
+    char tmp[sizeof d->buf[0]]; /* via a copy: d->dir is in *d too */
+    snprintf(tmp, sizeof tmp, "%s/%s", d->dir, name);
+    memcpy(d->buf[i], tmp, sizeof tmp);
     return d->buf[i];
 }
 

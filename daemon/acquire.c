@@ -308,9 +308,11 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
     if (!sha_ok)
         g_warning("run %s: %s", uuid, e.msg);
     /* Counts first: a terminal run's progress can no longer change. */
-    if (catalog_run_set_file(r->cat, uuid, path, sha_ok ? hex : NULL) != SL_OK ||
-        catalog_run_update_progress(r->cat, uuid, on_disk, a->failed, a->packets_missing) !=
-            SL_OK)
+    catlock_file cf = {uuid, path, sha_ok ? hex : NULL, 1, on_disk, a->failed,
+                       a->packets_missing};
+    char what[80];
+    snprintf(what, sizeof what, "run %s: recording its cube", uuid);
+    if (catlock_write(r->cat, what, catlock_set_file, &cf, runner_stopping, r) != SL_OK)
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
     a->stored = on_disk;
     runner_note_progress(r, on_disk);
@@ -359,7 +361,11 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     int rc = cube_writer_open(&a.w, a.part, a.cf.width, a.cf.height, bitpix, &meta, &e);
     if (rc == SL_OK && cube_writer_flush(a.w) != SL_OK)
         rc = sl_seterr(&e, SL_EIO, "%s", cube_writer_errmsg(a.w));
-    if (rc == SL_OK && catalog_run_set_file(r->cat, sp->uuid, a.part, NULL) != SL_OK)
+    catlock_file cf = {sp->uuid, a.part, NULL, 0, 0, 0, 0};
+    char what[80];
+    snprintf(what, sizeof what, "run %s: recording its cube", sp->uuid);
+    if (rc == SL_OK &&
+        catlock_write(r->cat, what, catlock_set_file, &cf, runner_stopping, r) != SL_OK)
         rc = sl_seterr(&e, SL_EIO, "%s", catalog_errmsg(r->cat));
     if (rc != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);

@@ -59,7 +59,9 @@ static const char defaults_text[] =
     "projections=0\n"
     "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
     "fftw=measure\n"
-    "max_clients=64\n";
+    "max_clients=64\n"
+    "# how long a catalogue write waits for another process's lock\n"
+    "catalog_busy_timeout_ms=5000\n";
 
 const char *config_defaults_text(void)
 {
@@ -74,7 +76,8 @@ static const char *const known_keys[][16] = {
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
     {"paths", "data_dir", "catalog", NULL},
-    {"daemon", "socket", "reconstruct", "projections", "fftw", "max_clients", NULL},
+    {"daemon", "socket", "reconstruct", "projections", "fftw", "max_clients",
+     "catalog_busy_timeout_ms", NULL},
 };
 
 int config_method_valid(const char *name)
@@ -344,7 +347,9 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
     if (rc)
         return rc;
     if ((rc = get_int(kf, "daemon", "projections", 0, 0, 4096, &c->projections, err)) ||
-        (rc = get_int(kf, "daemon", "max_clients", 64, 1, 4096, &c->max_clients, err)))
+        (rc = get_int(kf, "daemon", "max_clients", 64, 1, 4096, &c->max_clients, err)) ||
+        (rc = get_int(kf, "daemon", "catalog_busy_timeout_ms", 5000, 10, 600000,
+                      &c->catalog_busy_timeout_ms, err)))
         return rc;
     return SL_OK;
 }

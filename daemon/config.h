@@ -13,6 +13,7 @@
  *   [masks]   SLOT=NAME[:FILE] ... (built-in "full"/"nrm17", or a mask file)
  *   [paths]   data_dir catalog
  *   [daemon]  socket reconstruct projections fftw max_clients
+ *             catalog_busy_timeout_ms
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
  * typo must not silently fall back to a default).  Relative paths are
@@ -59,6 +60,8 @@ typedef struct config {
     int projections;            /* TSM angles; 0: the pipeline's default */
     int fftw_measure;           /* 1: FFTW_MEASURE with DATA_DIR/fftw-wisdom */
     int max_clients;
+    int catalog_busy_timeout_ms; /* a write waits this long for another
+                                  * process's lock, then fails "locked" */
 } config;
 
 /* The embedded defaults, as GKeyFile text (also printed by

@@ -278,6 +278,7 @@ int main(int argc, char **argv)
         ready_fd = detach();
     d.cfg = &cfg;
     d.started_us = g_get_monotonic_time();
+    catalog_opts cat_opts = {cfg.catalog_busy_timeout_ms};
     GMainLoop *loop = g_main_loop_new(NULL, FALSE);
     /* The main thread owns the main context from here to the end, also
      * outside g_main_loop_run: g_main_context_invoke from the threads then
@@ -286,7 +287,8 @@ int main(int argc, char **argv)
     g_main_context_acquire(g_main_context_default());
     if (prepare_dirs(&cfg, &lock_fd, &e) != SL_OK ||
         server_new(&d.srv, cfg.socket, cfg.max_clients, dispatch_request, &d, &e) != SL_OK ||
-        catalog_open(&d.cat, cfg.catalog, &e) != SL_OK || upsert_slots(&cfg, d.cat, &e) != SL_OK ||
+        catalog_open_opts(&d.cat, cfg.catalog, &cat_opts, &e) != SL_OK ||
+        upsert_slots(&cfg, d.cat, &e) != SL_OK ||
         recover_runs(&cfg, d.cat, &e) != SL_OK ||
         worker_new(&d.wk, &cfg, d.srv, &e) != SL_OK ||
         runner_new(&d.run, &cfg, d.srv, d.wk, &e) != SL_OK) {

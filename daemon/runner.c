@@ -11,9 +11,21 @@
 
 /* ---- thread-side helpers ------------------------------------------------ */
 
+int runner_stopping(void *runner_arg)
+{
+    runner *r = runner_arg;
+    g_mutex_lock(&r->mu);
+    int s = r->stopping;
+    g_mutex_unlock(&r->mu);
+    return s;
+}
+
 void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason)
 {
-    if (catalog_run_set_state(r->cat, uuid, st, reason) != SL_OK) {
+    catlock_state a = {uuid, st, reason};
+    char what[80];
+    snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
+    if (catlock_write(r->cat, what, catlock_set_state, &a, runner_stopping, r) != SL_OK) {
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
         return;
     }
@@ -276,7 +288,8 @@ static gpointer thread_main(gpointer data)
 int runner_new(runner **out, const config *cfg, server *srv, worker *wk, sl_err *err)
 {
     runner *r = g_new0(runner, 1);
-    int rc = catalog_open(&r->cat, cfg->catalog, err);
+    catalog_opts co = {cfg->catalog_busy_timeout_ms};
+    int rc = catalog_open_opts(&r->cat, cfg->catalog, &co, err);
     if (rc != SL_OK) {
         g_free(r);
         *out = NULL;

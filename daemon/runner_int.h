@@ -5,6 +5,7 @@
 
 #include <glib.h>
 
+#include "catlock.h"
 #include "runner.h"
 
 struct runner {
@@ -43,7 +44,10 @@ typedef enum acq_end {
 acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
                     size_t reason_len, double *r0_m);
 
-/* Thread-side helpers from runner.c. */
+/* Thread-side helpers from runner.c.  runner_set_state records the state
+ * (waiting out another process's lock on the catalogue, catlock.h), then
+ * tells subscribers; runner_stopping is catlock's stop test. */
+int runner_stopping(void *runner_arg);
 void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason);
 int runner_aborting(runner *r);
 void runner_note_camera(runner *r, int connected, const camera_info *info, const char *error);

@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "catlock.h"
 #include "cubefile.h"
 #include "metrics.h"
 #include "pipeline.h"
@@ -41,11 +42,24 @@ static void emit_state(worker *w, const char *uuid, catalog_state st, const char
     server_event_async(w->srv, uuid, proto_event_state(uuid, st, reason));
 }
 
-/* Move the run to st and say so; a refusal is logged (it means another
- * process changed the run, which the daemon does not expect). */
+static int stopping(void *worker_arg)
+{
+    worker *w = worker_arg;
+    g_mutex_lock(&w->mu);
+    int s = w->stopping;
+    g_mutex_unlock(&w->mu);
+    return s;
+}
+
+/* Move the run to st (waiting out another process's lock, catlock.h) and
+ * say so; a refusal is logged (it means another process changed the run,
+ * which the daemon does not expect). */
 static void set_state(worker *w, const char *uuid, catalog_state st, const char *reason)
 {
-    if (catalog_run_set_state(w->cat, uuid, st, reason) != SL_OK) {
+    catlock_state a = {uuid, st, reason};
+    char what[80];
+    snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
+    if (catlock_write(w->cat, what, catlock_set_state, &a, stopping, w) != SL_OK) {
         g_warning("run %s: %s", uuid, catalog_errmsg(w->cat));
         return;
     }
@@ -96,6 +110,12 @@ static char *json_text(JsonBuilder *b)
 typedef struct outputs {
     char *fits, *png, *params, *quality;
 } outputs;
+
+static int insert_recon(catalog *c, void *catalog_recon_arg)
+{
+    catalog_recon *rec = catalog_recon_arg;
+    return catalog_recon_insert(c, rec, &rec->id);
+}
 
 static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
                        outputs *o, sl_err *e)
@@ -162,7 +182,9 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     rec->output_fits = o->fits;
     rec->output_png = o->png;
     rec->quality_json = o->quality;
-    if ((rc = catalog_recon_insert(w->cat, rec, &rec->id)) != SL_OK)
+    char what[80];
+    snprintf(what, sizeof what, "run %s: recording its reconstruction", j->uuid);
+    if ((rc = catlock_write(w->cat, what, insert_recon, rec, stopping, w)) != SL_OK)
         sl_seterr(e, rc, "%s", catalog_errmsg(w->cat));
 clear_result:
     if (rc != SL_OK && o->fits) {   /* no row: leave no orphan files */
@@ -288,7 +310,8 @@ static gpointer thread_main(gpointer data)
 int worker_new(worker **out, const config *cfg, server *srv, sl_err *err)
 {
     worker *w = g_new0(worker, 1);
-    int rc = catalog_open(&w->cat, cfg->catalog, err);
+    catalog_opts co = {cfg->catalog_busy_timeout_ms};
+    int rc = catalog_open_opts(&w->cat, cfg->catalog, &co, err);
     if (rc != SL_OK) {
         g_free(w);
         *out = NULL;

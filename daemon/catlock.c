@@ -1,0 +1,47 @@
+/* catlock.c - catalogue writes that outlast another process's lock; see
+ * catlock.h. */
+#include "catlock.h"
+
+#include <glib.h>
+#include <string.h>
+
+int catlock_is_locked(const catalog *c)
+{
+    return strstr(catalog_errmsg(c), "is locked by another process") != NULL;
+}
+
+int catlock_write(catalog *c, const char *what, catlock_write_fn write, void *arg,
+                  catlock_stop_fn stop, void *user)
+{
+    gint64 t0 = g_get_monotonic_time();
+    int tries = 0, rc;
+    while ((rc = write(c, arg)) != SL_OK && catlock_is_locked(c)) {
+        /* The first failure, then every 12th (a minute at the default
+         * 5 s timeout), not one line per try. */
+        if (tries++ % 12 == 0)
+            g_warning("%s: %s; waiting for it", what, catalog_errmsg(c));
+        if (stop && stop(user)) {
+            g_warning("%s: given up, the daemon is stopping", what);
+            return rc;
+        }
+    }
+    if (rc == SL_OK && tries > 0)
+        g_message("%s: recorded after %.1f s", what, (g_get_monotonic_time() - t0) * 1e-6);
+    return rc;
+}
+
+int catlock_set_state(catalog *c, void *catlock_state_arg)
+{
+    const catlock_state *a = catlock_state_arg;
+    return catalog_run_set_state(c, a->uuid, a->to, a->reason);
+}
+
+int catlock_set_file(catalog *c, void *catlock_file_arg)
+{
+    const catlock_file *a = catlock_file_arg;
+    int rc = catalog_run_set_file(c, a->uuid, a->path, a->sha256);
+    if (rc == SL_OK && a->counts)
+        rc = catalog_run_update_progress(c, a->uuid, a->frames_acquired, a->frames_failed,
+                                         a->packets_missing);
+    return rc;
+}

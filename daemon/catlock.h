@@ -1,0 +1,50 @@
+/* catlock.h - catalogue writes that record a run, outlasting another
+ * process that holds the catalogue's write lock (an open sqlite3 shell,
+ * a backup tool).
+ *
+ * Each write waits the busy timeout ([daemon] catalog_busy_timeout_ms),
+ * then fails "catalogue PATH is locked by another process" (catalog.h's
+ * words, the only failure retried).  A run's state, file and frame counts
+ * must not be dropped for that - the catalogue would keep a run
+ * 'acquiring' that has ended, naming a .part file that was renamed, and
+ * no client would hear of its end - so the acquisition and reconstruction
+ * threads try such a write again, logging why, until it lands or the
+ * daemon stops (the run is then left non-terminal and recovered as
+ * interrupted at the next start, its cube intact).  Events are sent only
+ * after the write: nothing is announced that the catalogue does not say.
+ * Cost: nothing unless locked; a blocked thread holds no lock of ours.
+ */
+#ifndef SL_DAEMON_CATLOCK_H
+#define SL_DAEMON_CATLOCK_H
+
+#include "catalog.h"
+
+typedef int (*catlock_write_fn)(catalog *c, void *arg);
+/* Nonzero: the daemon is stopping, give up. */
+typedef int (*catlock_stop_fn)(void *user);
+
+/* 1 when c's last error is "locked by another process". */
+int catlock_is_locked(const catalog *c);
+/* write(c, arg) until it succeeds, fails otherwise, or stop(user) while
+ * locked; its last status (the message in c).  what names the write in
+ * the log. */
+int catlock_write(catalog *c, const char *what, catlock_write_fn write, void *arg,
+                  catlock_stop_fn stop, void *user);
+
+/* The common writes, as catlock_write_fn with their arguments. */
+typedef struct catlock_state {
+    const char *uuid;
+    catalog_state to;
+    const char *reason;
+} catlock_state;
+int catlock_set_state(catalog *c, void *catlock_state_arg);
+
+typedef struct catlock_file {
+    const char *uuid, *path, *sha256;
+    int counts;                        /* also write the counts below */
+    int frames_acquired, frames_failed;
+    int64_t packets_missing;
+} catlock_file;
+int catlock_set_file(catalog *c, void *catlock_file_arg);
+
+#endif

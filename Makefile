@@ -257,6 +257,12 @@ FUZZ_FITS_SRC  := recon/cube.c recon/cube_guard.c recon/cube_write.c recon/seq.c
 FUZZ_MASK_SRC  := recon/mask.c recon/rng.c recon/status.c
 FUZZ_SCENE_SRC := recon/scene.c recon/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/status.c
+FUZZ_CONFIG_SRC := daemon/config.c recon/status.c
+# The control socket: server, dispatcher, catalogue and the stage driver
+# (`devices`); the runner and the worker are stand-ins in the harness.
+FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
+                     daemon/config.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
+FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
 $(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/cube.h recon/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
 	@mkdir -p $(dir $@)
@@ -272,6 +278,24 @@ $(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stag
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Irecon -Idrivers $(shell $(PKG) --cflags libmodbus) $< \
 	    $(FUZZ_STAGE_SRC) -o $@ $(shell $(PKG) --libs libmodbus) -lm
+
+$(FUZZ_BUILD)/fuzz_config: tests/fuzz/fuzz_config.c $(FUZZ_CONFIG_SRC) daemon/config.h tests/fuzz/fuzz_util.h
+	@mkdir -p $(dir $@)
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon -Idaemon $(shell $(PKG) --cflags glib-2.0) $< \
+	    $(FUZZ_CONFIG_SRC) -o $@ $(shell $(PKG) --libs glib-2.0) -lm
+# The catalogue's migrations, compiled in as in the main build (not instrumented).
+$(FUZZ_BUILD)/schema/catalog_res.o: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)
+	@mkdir -p $(dir $@)
+	glib-compile-resources --generate-source --c-name catalog_res \
+	    --sourcedir=schema --target=$(@:.o=.c) $(SCHEMA_RES)
+	$(FUZZ_CC) -std=c11 -O1 $(schema_cflags) -c $(@:.o=.c) -o $@
+$(FUZZ_BUILD)/fuzz_dispatch: tests/fuzz/fuzz_dispatch.c $(FUZZ_DISPATCH_SRC) \
+                             $(FUZZ_BUILD)/schema/catalog_res.o $(wildcard daemon/*.h schema/*.h) \
+                             tests/fuzz/fuzz_util.h tests/fuzz/fuzz_daemon_ctx.h
+	@mkdir -p $(dir $@)
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Irecon -Idrivers -Ischema -Idaemon \
+	    $(shell $(PKG) --cflags $(FUZZ_DISPATCH_PKGS)) $< $(FUZZ_DISPATCH_SRC) \
+	    $(FUZZ_BUILD)/schema/catalog_res.o -o $@ $(shell $(PKG) --libs $(FUZZ_DISPATCH_PKGS)) -lm
 
 # The short fuzz run CI does, as one more "test binary" for tests/run.
 $(FUZZ_BUILD)/ci-fuzz-run: $(FUZZ_BIN)

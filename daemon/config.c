@@ -87,14 +87,18 @@ int config_method_valid(const char *name)
 }
 
 /* Names become catalogue keys and FITS values, never paths; still, keep
- * them plain so they can never be mistaken for one. */
+ * them plain so they can never be mistaken for one.  Nor for a slot
+ * number as find() reads one: "1", but also "+1" or "-0" (found by
+ * fuzzing: start-run's screen "+1" meant slot 1, not the screen "+1"). */
 static int name_ok(const char *s)
 {
     size_t n = strlen(s);
+    char *end = NULL;
+    (void)strtol(s, &end, 10);
     return n >= 1 && n <= 64 && strspn(s, "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
                                           "abcdefghijklmnopqrstuvwxyz"
                                           "0123456789_.+-") == n &&
-           !strstr(s, "..") && strspn(s, "0123456789") != n; /* not a slot */
+           !strstr(s, "..") && *end != '\0';
 }
 
 /* Every key of the file is known (slot groups: keys are slot numbers). */
@@ -152,27 +156,48 @@ static void overlay(GKeyFile *dst, GKeyFile *src)
     g_strfreev(groups);
 }
 
+/* The key's value, unescaped and stripped, or NULL when the key is
+ * absent.  A key that is there but unreadable (not UTF-8, a bad escape)
+ * is an error naming it: it must not fall back to the default (found by
+ * fuzzing). */
+static int get_value(GKeyFile *kf, const char *g, const char *k, char **out, sl_err *err)
+{
+    GError *ge = NULL;
+    *out = g_key_file_get_string(kf, g, k, &ge);
+    if (*out) {
+        g_strstrip(*out);
+        return SL_OK;
+    }
+    int rc = SL_OK;
+    if (g_key_file_has_key(kf, g, k, NULL))
+        rc = sl_seterr(err, SL_EINVAL, "config [%s] %s: %s", g, k,
+                       ge ? ge->message : "unreadable value");
+    if (ge)
+        g_error_free(ge);
+    return rc;
+}
+
 /* Typed getters: a missing key gives def; a bad value is an error naming
  * the key.  Numbers are parsed in the C locale (g_ascii_strtod). */
 static int get_str(GKeyFile *kf, const char *g, const char *k, const char *def,
-                   char **out)
+                   char **out, sl_err *err)
 {
-    gchar *v = g_key_file_get_string(kf, g, k, NULL);
-    *out = v ? g_strstrip(v) : g_strdup(def);
-    return SL_OK;
+    int rc = get_value(kf, g, k, out, err);
+    if (!*out)
+        *out = g_strdup(def);
+    return rc;
 }
 
 static int get_num(GKeyFile *kf, const char *g, const char *k, double def,
                    double lo, double hi, double *out, sl_err *err)
 {
-    gchar *v = g_key_file_get_string(kf, g, k, NULL);
+    gchar *v = NULL;
     char *end = NULL;
+    int rc = get_value(kf, g, k, &v, err);
     *out = def;
     if (!v)
-        return SL_OK;
-    g_strstrip(v);
+        return rc;
     double x = g_ascii_strtod(v, &end);
-    int rc = SL_OK;
     if (end == v || *end || !(x >= lo && x <= hi))
         rc = sl_seterr(err, SL_EINVAL, "config [%s] %s = '%s': expected a number in "
                        "%g..%g", g, k, v, lo, hi);
@@ -207,7 +232,9 @@ static int get_slots(GKeyFile *kf, const char *g, int masks, config_slot *out,
     for (int k = 0; keys && keys[k] && rc == SL_OK; k++) {
         char *end = NULL;
         long slot = strtol(keys[k], &end, 10);
-        gchar *v = g_key_file_get_string(kf, g, keys[k], NULL);
+        gchar *v = NULL;
+        if ((rc = get_value(kf, g, keys[k], &v, err)) != SL_OK)
+            break;
         char *colon = v && masks ? strchr(v, ':') : NULL;
         if (colon)
             *colon = '\0';
@@ -225,6 +252,10 @@ static int get_slots(GKeyFile *kf, const char *g, int masks, config_slot *out,
                 if (!strcmp(out[i].name, v))
                     rc = sl_seterr(err, SL_EINVAL, "config [%s]: name '%s' in slots %d "
                                    "and %ld", g, v, out[i].slot, slot);
+                else if (out[i].slot == slot)   /* "1" and "01" (found by fuzzing) */
+                    rc = sl_seterr(err, SL_EINVAL, "config [%s] %s: slot %ld is given "
+                                   "twice ('%s' and '%s')", g, keys[k], slot, out[i].name,
+                                   v);
         }
         if (rc == SL_OK) {
             out[*n].slot = (int)slot;
@@ -244,11 +275,11 @@ static int get_slots(GKeyFile *kf, const char *g, int masks, config_slot *out,
 /* "x,y,w,h" or empty. */
 static int get_roi(GKeyFile *kf, int roi[4], sl_err *err)
 {
-    gchar *v = g_key_file_get_string(kf, "camera", "roi", NULL);
-    int rc = SL_OK;
+    gchar *v = NULL;
+    int rc = get_value(kf, "camera", "roi", &v, err);
     char tail;
     memset(roi, 0, 4 * sizeof *roi);
-    if (v && *g_strstrip(v) &&
+    if (v && *v &&
         (sscanf(v, "%d,%d,%d,%d%c", &roi[0], &roi[1], &roi[2], &roi[3], &tail) != 4 ||
          roi[0] < 0 || roi[1] < 0 || roi[2] < 8 || roi[3] < 8))
         rc = sl_seterr(err, SL_EINVAL, "config [camera] roi = '%s': expected X,Y,W,H "
@@ -281,13 +312,26 @@ static char *absolute(const char *p)
     return r;
 }
 
+/* A path; empty: DIR/LEAF. */
+static int get_path(GKeyFile *kf, const char *g, const char *k, const char *dir,
+                    const char *leaf, char **out, sl_err *err)
+{
+    char *s = NULL;
+    int rc = get_str(kf, g, k, "", &s, err);
+    if (rc == SL_OK)
+        *out = *s ? absolute(s) : g_build_filename(dir, leaf, NULL);
+    g_free(s);
+    return rc;
+}
+
 static int read_values(config *c, GKeyFile *kf, sl_err *err)
 {
     int rc = SL_OK;
     char *s = NULL;
-    get_str(kf, "camera", "backend", "aravis", &c->camera_backend);
-    get_str(kf, "camera", "address", "127.0.0.1", &c->camera_address);
-    get_str(kf, "camera", "pixel_format", "Mono16", &c->pixel_format);
+    if ((rc = get_str(kf, "camera", "backend", "aravis", &c->camera_backend, err)) ||
+        (rc = get_str(kf, "camera", "address", "127.0.0.1", &c->camera_address, err)) ||
+        (rc = get_str(kf, "camera", "pixel_format", "Mono16", &c->pixel_format, err)))
+        return rc;
     if (strcmp(c->pixel_format, "Mono16") && strcmp(c->pixel_format, "Mono8"))
         return sl_seterr(err, SL_EINVAL, "config [camera] pixel_format = '%s': expected "
                          "Mono16 or Mono8", c->pixel_format);
@@ -303,14 +347,15 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
                       err)))
         return rc;
     c->wavelength_m *= 1e-9;
-    get_str(kf, "stage", "backend", "tcp", &c->stage_backend);
-    get_str(kf, "stage", "device", "", &c->stage_device);
+    if ((rc = get_str(kf, "stage", "backend", "tcp", &c->stage_backend, err)) ||
+        (rc = get_str(kf, "stage", "device", "", &c->stage_device, err)))
+        return rc;
     if (strcmp(c->stage_backend, "tcp") && strcmp(c->stage_backend, "rtu"))
         return sl_seterr(err, SL_EINVAL, "config [stage] backend = '%s': expected tcp or rtu",
                          c->stage_backend);
-    get_str(kf, "stage", "address", "127.0.0.1:1502", &s);
-    rc = strcmp(c->stage_backend, "tcp") ? SL_OK
-                                          : split_address(s, &c->stage_host, &c->stage_port, err);
+    if ((rc = get_str(kf, "stage", "address", "127.0.0.1:1502", &s, err)) == SL_OK &&
+        !strcmp(c->stage_backend, "tcp"))
+        rc = split_address(s, &c->stage_host, &c->stage_port, err);
     g_free(s);
     if (rc || (rc = get_int(kf, "stage", "unit", 1, 0, 247, &c->stage_unit, err)) ||
         (rc = get_int(kf, "stage", "baud", 19200, 300, 4000000, &c->stage_baud, err)) ||
@@ -325,20 +370,22 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
     if ((rc = get_slots(kf, "screens", 0, c->screens, &c->nscreens, err)) ||
         (rc = get_slots(kf, "masks", 1, c->masks, &c->nmasks, err)))
         return rc;
-    get_str(kf, "paths", "data_dir", "./var", &s);
-    c->data_dir = absolute(*s ? s : ".");
+    if ((rc = get_str(kf, "paths", "data_dir", "./var", &s, err)) == SL_OK)
+        c->data_dir = absolute(*s ? s : ".");
     g_free(s);
-    get_str(kf, "paths", "catalog", "", &s);
-    c->catalog = *s ? absolute(s) : g_build_filename(c->data_dir, "specklab.db", NULL);
-    g_free(s);
-    get_str(kf, "daemon", "socket", "", &s);
-    c->socket = *s ? absolute(s) : g_build_filename(c->data_dir, "specklabd.sock", NULL);
-    g_free(s);
-    get_str(kf, "daemon", "reconstruct", "tsm-fourier", &c->reconstruct);
+    if (rc || (rc = get_path(kf, "paths", "catalog", c->data_dir, "specklab.db", &c->catalog,
+                             err)) ||
+        (rc = get_path(kf, "daemon", "socket", c->data_dir, "specklabd.sock", &c->socket,
+                       err)) ||
+        (rc = get_str(kf, "daemon", "reconstruct", "tsm-fourier", &c->reconstruct, err)))
+        return rc;
     if (!config_method_valid(c->reconstruct))
         return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected tsm, "
                          "tsm-fourier, direct or none", c->reconstruct);
-    get_str(kf, "daemon", "fftw", "measure", &s);
+    if ((rc = get_str(kf, "daemon", "fftw", "measure", &s, err)) != SL_OK) {
+        g_free(s);
+        return rc;
+    }
     c->fftw_measure = !strcmp(s, "measure");
     if (!c->fftw_measure && strcmp(s, "estimate"))
         rc = sl_seterr(err, SL_EINVAL, "config [daemon] fftw = '%s': expected measure or "

@@ -1,7 +1,8 @@
 /* fuzz_util.h - what every libFuzzer target here shares: the input as a
  * file, and contract checks that abort (a finding) when a module breaks
  * its promises.  Define FUZZ_NAME (the target's name, for messages) before
- * including it.  Header-only so that each target stays one link unit.
+ * including it.  Header-only so that each target stays one link unit;
+ * inline so that a target need not use every helper.
  */
 #ifndef SL_FUZZ_UTIL_H
 #define SL_FUZZ_UTIL_H
@@ -16,7 +17,7 @@
 #include "status.h"
 
 /* A memfd holding the bytes, path "/proc/self/fd/N"; -1 on failure. */
-static int mem_file(const uint8_t *data, size_t size, char *path, size_t n)
+static inline int mem_file(const uint8_t *data, size_t size, char *path, size_t n)
 {
     int fd = memfd_create(FUZZ_NAME, MFD_CLOEXEC);
     if (fd < 0)
@@ -33,7 +34,7 @@ static int mem_file(const uint8_t *data, size_t size, char *path, size_t n)
     return fd;
 }
 
-static void require(int cond, const char *what, const char *msg)
+static inline void require(int cond, const char *what, const char *msg)
 {
     if (!cond) {
         fprintf(stderr, "%s: contract broken: %s (%s)\n", FUZZ_NAME, what,
@@ -42,7 +43,7 @@ static void require(int cond, const char *what, const char *msg)
     }
 }
 
-static void check_failure(int rc, const sl_err *e, const char *what)
+static inline void check_failure(int rc, const sl_err *e, const char *what)
 {
     require(rc < 0 && rc >= SL_EEND, what, "status outside SL_E*");
     require(e->code == rc, what, "sl_err code differs from the status");

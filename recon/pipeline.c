@@ -337,6 +337,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     tsm_opts_default(&to);
     to.nangles = o->nangles > 0 ? o->nangles : 180;
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
+    to.threads = o->nthreads > 0 ? o->nthreads : 2;
     to.photons_per_frame = photons;
     to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
     /* Bias (tsm.h): photons known -> photon bias plus the read noise the

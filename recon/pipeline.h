@@ -48,7 +48,8 @@ typedef struct pipeline_opts {
      * band-limited at the cut-off. */
     const char *target_path;
     double wiener;            /* reference regulariser; 0 = default */
-    int nthreads;             /* direct bispectrum threads; 0 = 2 */
+    int nthreads;             /* direct bispectrum / spatial TSM projector
+                               * threads; 0 = 2 */
     int refine_iters;         /* least-squares passes after the recursion */
     int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
 } pipeline_opts;

@@ -13,6 +13,7 @@
  * half use G(m) = conj G(-m).
  */
 #include "radon.h"
+#include "radon_spatial.h"
 
 #include <fftw3.h>
 #include <math.h>
@@ -43,14 +44,10 @@ struct radon {
     float *twx, *twy;         /* kw weights per sample */
     float *dens;              /* nf: gridding FBP weight, window included */
     /* 1-D */
-    int nl, up;               /* filter length 2*ns, upsampling */
-    float *l_in, *u_out, *qext, *ramp;
-    float *l_spec, *u_spec;   /* interleaved complex */
-    fftwf_plan l_r2c, u_c2r;
     float *p_in;
     float *p_spec;
     fftwf_plan p_r2c, p_c2r;
-    float *pad;               /* spatial: frame with a 2-pixel zero border */
+    radon_spatial *sp;        /* projector and FBP (radon_spatial.c) */
     /* iterative */
     float *it_x, *it_z, *it_g;
     float complex *it_spec;
@@ -103,20 +100,6 @@ static int fft_size(int m)
     }
 }
 
-static double window_gain(radon_window win, double f, double fc)
-{
-    if (f > fc)
-        return 0.0;
-    double x = f / fc;
-    switch (win) {
-    case RADON_WIN_SHEPP_LOGAN:
-        return x > 0 ? sin(M_PI_2 * x) / (M_PI_2 * x) : 1.0;
-    case RADON_WIN_COSINE: return cos(M_PI_2 * x);
-    case RADON_WIN_HANN: return 0.5 * (1.0 + cos(M_PI * x));
-    default: return 1.0;
-    }
-}
-
 static int wrap(int i, int n) { i %= n; return i < 0 ? i + n : i; }
 
 /* malloc (fftw = 0) or fftwf_malloc (aligned), clearing *ok on failure so
@@ -132,20 +115,18 @@ void radon_free(radon *r)
 {
     if (!r)
         return;
+    radon_spatial_free(r->sp);
     fftwf_plan plans[] = {r->rows_a, r->rows_b, r->cols_fwd, r->cols_inv,
-                          r->irows_a, r->irows_b, r->l_r2c, r->u_c2r,
-                          r->p_r2c, r->p_c2r};
+                          r->irows_a, r->irows_b, r->p_r2c, r->p_c2r};
     for (size_t i = 0; i < sizeof plans / sizeof plans[0]; i++)
         if (plans[i])
             fftwf_destroy_plan(plans[i]);
-    void *fb[] = {r->grid_in, r->grid_out, r->fspec, r->gspec, r->l_in, r->u_out,
-                  r->l_spec, r->u_spec, r->p_in, r->p_spec};
+    void *fb[] = {r->grid_in, r->grid_out, r->fspec, r->gspec, r->p_in, r->p_spec};
     for (size_t i = 0; i < sizeof fb / sizeof fb[0]; i++)
         fftwf_free(fb[i]);
     void *mb[] = {r->cs, r->sn, r->xlo, r->xhi, r->deap_x, r->deap_y,
                   r->tx0, r->ty0, r->tconj, r->twx, r->twy, r->dens,
-                  r->qext, r->ramp, r->pad, r->it_x, r->it_z, r->it_g,
-                  r->it_spec};
+                  r->it_x, r->it_z, r->it_g, r->it_spec};
     for (size_t i = 0; i < sizeof mb / sizeof mb[0]; i++)
         free(mb[i]);
     free(r);
@@ -225,13 +206,13 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
         return NULL;
     }
     r->w = w, r->h = h, r->nang = nangles, r->ns = ns, r->nf = nf;
-    r->o = o, r->kw = kw, r->up = up, r->nl = 2 * ns;
+    r->o = o, r->kw = kw;
     int mx = w > h ? w : h;
     r->ng = fft_size((int)ceil(sigma * mx));
     if (r->ng < mx + kw)
         r->ng = fft_size(mx + kw);
     size_t ng = (size_t)r->ng, nh = ng / 2 + 1, nsamp = (size_t)nangles * nf;
-    size_t npix = (size_t)w * h, L = (size_t)r->nl * up;
+    size_t npix = (size_t)w * h;
     unsigned flags = o.fftw_flags ? o.fftw_flags : FFTW_MEASURE;
     int ok = 1;
     r->cs = alloc(nangles * sizeof *r->cs, 0, &ok);
@@ -246,26 +227,15 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
     r->twx = alloc(nsamp * kw * sizeof *r->twx, 0, &ok);
     r->twy = alloc(nsamp * kw * sizeof *r->twy, 0, &ok);
     r->dens = alloc(nf * sizeof *r->dens, 0, &ok);
-    r->ramp = alloc((r->nl / 2 + 1) * sizeof *r->ramp, 0, &ok);
-    r->qext = alloc((L + 8) * sizeof *r->qext, 0, &ok);
     r->it_x = alloc(npix * sizeof *r->it_x, 0, &ok);
     r->it_z = alloc(npix * sizeof *r->it_z, 0, &ok);
     r->it_g = alloc(npix * sizeof *r->it_g, 0, &ok);
     r->it_spec = alloc(nsamp * sizeof *r->it_spec, 0, &ok);
-    if (o.spatial) {
-        r->pad = alloc((size_t)(w + 4) * (h + 4) * sizeof *r->pad, 0, &ok);
-        if (r->pad)   /* the border stays zero */
-            memset(r->pad, 0, (size_t)(w + 4) * (h + 4) * sizeof *r->pad);
-    }
     /* FFTW buffers (aligned); complex ones are interleaved float pairs. */
     r->grid_in = alloc((size_t)h * ng * sizeof(float), 1, &ok);
     r->grid_out = alloc((size_t)h * ng * sizeof(float), 1, &ok);
     r->fspec = alloc(ng * nh * 2 * sizeof(float), 1, &ok);
     r->gspec = alloc(ng * nh * 2 * sizeof(float), 1, &ok);
-    r->l_in = alloc(r->nl * sizeof(float), 1, &ok);
-    r->l_spec = alloc((r->nl / 2 + 1) * 2 * sizeof(float), 1, &ok);
-    r->u_spec = alloc((L / 2 + 1) * 2 * sizeof(float), 1, &ok);
-    r->u_out = alloc(L * sizeof(float), 1, &ok);
     r->p_in = alloc(ns * sizeof(float), 1, &ok);
     r->p_spec = alloc((ns / 2 + 1) * 2 * sizeof(float), 1, &ok);
     if (!ok) {
@@ -291,13 +261,10 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
                                          r->grid_out + (size_t)ha * ng, NULL, 1, n1, flags);
     r->irows_b = fftwf_plan_many_dft_c2r(1, &n1, ha, gs + (ng - ha) * nh, NULL, 1, inh,
                                          r->grid_out, NULL, 1, n1, flags);
-    r->l_r2c = fftwf_plan_dft_r2c_1d(r->nl, r->l_in, (fftwf_complex *)r->l_spec, flags);
-    r->u_c2r = fftwf_plan_dft_c2r_1d((int)L, (fftwf_complex *)r->u_spec, r->u_out, flags);
     r->p_r2c = fftwf_plan_dft_r2c_1d(ns, r->p_in, (fftwf_complex *)r->p_spec, flags);
     r->p_c2r = fftwf_plan_dft_c2r_1d(ns, (fftwf_complex *)r->p_spec, r->p_in, flags);
     if (!r->rows_a || !r->rows_b || !r->cols_fwd || !r->cols_inv ||
-        !r->irows_a || !r->irows_b || !r->l_r2c || !r->u_c2r || !r->p_r2c ||
-        !r->p_c2r) {
+        !r->irows_a || !r->irows_b || !r->p_r2c || !r->p_c2r) {
         sl_seterr(err, SL_ENOMEM, "radon_new: FFTW planning failed");
         goto fail_free;
     }
@@ -321,28 +288,18 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
         }
         r->xlo[y] = lo, r->xhi[y] = hi;
     }
+    r->sp = radon_spatial_new(w, h, nangles, ns, &o, r->cs, r->sn, r->xlo, r->xhi, err);
+    if (!r->sp)
+        goto fail_free;
     setup_nufft(r, sigma);
-    /* Ram-Lak kernel sampled in space (Kak & Slaney 3.61), its DFT times
-     * the window, with the FBP factor pi/K and FFTW's 1/n folded in. */
     double fc = o.window_cut_cyc_px > 0 ? o.window_cut_cyc_px : 0.5;
-    for (int i = 0; i < r->nl; i++) {
-        int n = i < r->nl / 2 ? i : i - r->nl;
-        r->l_in[i] = n == 0 ? 0.25f
-                   : (n & 1) ? (float)(-1.0 / (M_PI * M_PI * (double)n * n)) : 0.0f;
-    }
-    fftwf_execute(r->l_r2c);
-    for (int k = 0; k <= r->nl / 2; k++) {
-        double f = (double)k / r->nl;
-        r->ramp[k] = (float)(r->l_spec[2 * (k)] * window_gain(o.window, f, fc) *
-                             M_PI / nangles / L * up);
-    }
     /* Gridding weights: polar area element |rho| drho dtheta; the disc
      * |rho| < drho/2 for j = 0, shared by the angles and halved because
      * the sample is also spread at -k. */
     for (int j = 0; j < nf; j++) {
         double rho = (double)j / ns, a = M_PI / ((double)nangles * ns);
         double d = j ? a * rho : a / (8.0 * ns);
-        r->dens[j] = (float)(d * window_gain(o.window, rho, fc));
+        r->dens[j] = (float)(d * radon_window_gain(o.window, rho, fc));
     }
     return r;
 fail_free:
@@ -350,50 +307,19 @@ fail_free:
     return NULL;
 }
 
-/* ---- spatial forward ---------------------------------------------------- */
+/* ---- spatial forward and FBP: radon_spatial.c ------------------------- */
 
 int radon_project(radon *r, const float *img, float *proj)
 {
-    if (!r->pad)
+    if (!radon_spatial_can_project(r->sp))
         return sl_seterr(&r->err, SL_EINVAL, "radon_project: handle made with spatial = 0");
-    int w = r->w, h = r->h, pw = w + 4, ns = r->ns;
-    for (int y = 0; y < h; y++)
-        memcpy(r->pad + (size_t)(y + 2) * pw + 2, img + (size_t)y * w, w * sizeof *img);
-    int nd = (int)ceil(hypot(w, h)) + 4;
-    nd += nd & 1;
-    double cx = w / 2, cy = h / 2;
-    for (int k = 0; k < r->nang; k++) {
-        double c = r->cs[k], s = r->sn[k];
-        float *p = proj + (size_t)k * ns;
-        memset(p, 0, ns * sizeof *p);
-        for (int i = 0; i < nd; i++) {
-            double sv = i - nd / 2;
-            /* Ray point: (cx, cy) + sv*(c, s) + t*(-s, c); keep the t
-             * where the point is in (-1, w) x (-1, h): elsewhere all four
-             * bilinear taps are outside the frame. */
-            double x0 = cx + sv * c, y0 = cy + sv * s, tlo = -1e30, thi = 1e30;
-            if (fabs(s) > 1e-12) {
-                double a = (x0 + 1) / s, b = (x0 - w) / s;
-                tlo = fmax(tlo, fmin(a, b)), thi = fmin(thi, fmax(a, b));
-            } else if (x0 <= -1 || x0 >= w)
-                continue;
-            if (fabs(c) > 1e-12) {
-                double a = (-1 - y0) / c, b = (h - y0) / c;
-                tlo = fmax(tlo, fmin(a, b)), thi = fmin(thi, fmax(a, b));
-            } else if (y0 <= -1 || y0 >= h)
-                continue;
-            double acc = 0.0;
-            for (int t = (int)ceil(tlo); t <= (int)floor(thi); t++) {
-                double x = x0 - t * s + 2, y = y0 + t * c + 2;
-                int ix = (int)x, iy = (int)y;   /* x, y > 0 here */
-                double fx = x - ix, fy = y - iy;
-                const float *q = r->pad + (size_t)iy * pw + ix;
-                acc += (1 - fy) * ((1 - fx) * q[0] + fx * q[1]) +
-                       fy * ((1 - fx) * q[pw] + fx * q[pw + 1]);
-            }
-            p[wrap((int)sv + ns / 2, ns)] += (float)acc;
-        }
-    }
+    radon_spatial_project(r->sp, img, proj);
+    return SL_OK;
+}
+
+int radon_fbp(radon *r, const float *proj, float *img)
+{
+    radon_spatial_fbp(r->sp, proj, img);
     return SL_OK;
 }
 
@@ -552,7 +478,7 @@ int radon_fbp_slices(radon *r, const float complex *spec, float *img)
     return SL_OK;
 }
 
-/* ---- 1-D transforms and spatial FBP ------------------------------------- */
+/* ---- 1-D transforms --------------------------------------------------- */
 
 int radon_proj_to_spec(radon *r, const float *proj, float complex *spec)
 {
@@ -579,55 +505,6 @@ int radon_spec_to_proj(radon *r, const float complex *spec, float *proj)
         }
         fftwf_execute(r->p_c2r);
         memcpy(proj + (size_t)k * r->ns, r->p_in, r->ns * sizeof(float));
-    }
-    return SL_OK;
-}
-
-int radon_fbp(radon *r, const float *proj, float *img)
-{
-    int ns = r->ns, nl = r->nl, up = r->up, L = nl * up, w = r->w;
-    memset(img, 0, (size_t)w * r->h * sizeof *img);
-    for (int k = 0; k < r->nang; k++) {
-        memcpy(r->l_in, proj + (size_t)k * ns, ns * sizeof(float));
-        memset(r->l_in + ns, 0, (nl - ns) * sizeof(float));
-        fftwf_execute(r->l_r2c);
-        memset(r->u_spec, 0, (L / 2 + 1) * 2 * sizeof(float));
-        for (int j = 0; j <= nl / 2; j++) {
-            float g = r->ramp[j] * (up > 1 && j == nl / 2 ? 0.5f : 1.0f);
-            r->u_spec[2 * (j)] = g * r->l_spec[2 * (j)];
-            r->u_spec[2 * (j) + 1] = g * r->l_spec[2 * (j) + 1];
-        }
-        fftwf_execute(r->u_c2r);
-        /* Periodic guard of 2 samples each side: q(s) at s < -ns/2 lives
-         * at the end of the circular buffer. */
-        float *q = r->qext + 2;
-        memcpy(q, r->u_out, L * sizeof(float));
-        q[-2] = r->u_out[L - 2], q[-1] = r->u_out[L - 1];
-        q[L] = r->u_out[0], q[L + 1] = r->u_out[1], q[L + 2] = r->u_out[2];
-        double c = r->cs[k] * up, s = r->sn[k] * up, off = 0.5 * ns * up;
-        for (int y = 0; y < r->h; y++) {
-            float *row = img + (size_t)y * w;
-            double base = (y - r->h / 2) * s + off - (w / 2) * c;
-            if (r->o.bp_interp == RADON_INTERP_CUBIC) {
-                for (int x = r->xlo[y]; x <= r->xhi[y]; x++) {
-                    double t = base + x * c;
-                    int i = (int)floor(t);
-                    float f = (float)(t - i), f2 = f * f, f3 = f2 * f;
-                    const float *p = q + i;   /* Keys a = -0.5 */
-                    row[x] += p[-1] * (-0.5f * f3 + f2 - 0.5f * f) +
-                              p[0] * (1.5f * f3 - 2.5f * f2 + 1.0f) +
-                              p[1] * (-1.5f * f3 + 2.0f * f2 + 0.5f * f) +
-                              p[2] * (0.5f * f3 - 0.5f * f2);
-                }
-            } else {
-                for (int x = r->xlo[y]; x <= r->xhi[y]; x++) {
-                    double t = base + x * c;
-                    int i = (int)floor(t);
-                    float f = (float)(t - i);
-                    row[x] += q[i] + f * (q[i + 1] - q[i]);
-                }
-            }
-        }
     }
     return SL_OK;
 }

@@ -6,7 +6,7 @@
  *   (1) projection spectra at nangles angles (radon.h): TSM_FOURIER takes
  *       them as radial slices of one 2-D FFT (Fourier-slice theorem, exact
  *       up to ~1e-4), TSM_SPATIAL projects with the bilinear ray-driven
- *       Radon transform and FFTs each projection (the paper's way; ~70x
+ *       Radon transform and FFTs each projection (the paper's way; ~6x
  *       slower at 180 angles and damps high frequencies);
  *   (2) per angle, accumulate in double the power |P(u)|^2, the mean
  *       spectrum P(u) and the 1-D bispectrum B(u1,u2) = P(u1) P(u2)
@@ -150,6 +150,8 @@ typedef struct tsm_opts {
     double oversamp;           /* Fourier-slice grid; 0: radon default */
     int kernel_bins;           /* Fourier-slice kernel; 0: radon default */
     unsigned fftw_flags;       /* 0: FFTW_MEASURE */
+    int threads;               /* TSM_SPATIAL projector threads (radon.h);
+                                * 0: 1 */
 } tsm_opts;
 
 void tsm_opts_default(tsm_opts *o);   /* all zero = the defaults above */

@@ -7,6 +7,31 @@
 #include "bench.h"
 #include "cli.h"
 
+/* A configuration to measure on a data set. */
+typedef struct bcli_config {
+    int method, param, ref; /* param: R2 (direct) or projections (TSM) */
+    int skips;              /* PIPE_SKIP_* bits; -1: the method's default */
+    double target;          /* auto: the 1 - c wanted; 0: the default */
+} bcli_config;
+
+/* Option lists (bench_args.c): append the parsed values to out; 0, or 2
+ * after printing what is wrong.  Sizes go in as (w, h) pairs; skip sets
+ * are "crop,support/none/all/default" (NULL: one set, the default -1). */
+int bcli_parse_ints(const char *what, const char *s, int lo, int hi,
+                    GArray *out);
+int bcli_parse_doubles(const char *what, const char *s, GArray *out);
+int bcli_parse_sizes(const char *s, GArray *out);
+int bcli_parse_skip_sets(const char *s, GArray *out);
+
+/* The sweep runner's state (cmd_bench.c). */
+typedef struct bcli_ctx bcli_ctx;
+
+/* Simulate data set d (once) and measure each configuration on it that
+ * was not measured before; block tags the rows (see bcli_row).  0 or 1
+ * (failed: counted and reported). */
+int bcli_run_dataset(bcli_ctx *c, const bench_sim *d, const bcli_config *cf,
+                     int ncf, int block);
+
 /* One measured point: a data set, a configuration, what was measured. */
 typedef struct bcli_row {
     char scene[16];
@@ -16,9 +41,13 @@ typedef struct bcli_row {
     int method;                /* enum pipeline_method */
     int nangles, r2;           /* as requested (0 = the pipeline's default) */
     int ref;                   /* 1: reference sequence + cophased target */
+    int skips;                 /* requested PIPE_SKIP_* bits, -1: default */
+    double target;             /* auto: requested target 1 - c (0: 0.1) */
+    int inject;                /* data set with injected bad frames */
+    double oversample;         /* data set sampled this x finer than Nyquist */
     int repeat, threads;
     int block;                 /* 0 main sweep, 1 paper Table 2, 2 paper
-                                  binaries, 3 scaling */
+                                  binaries, 3 scaling, 4 skips report */
     bench_timing t;
     bench_score s;
     bench_score floor;         /* the cophased image itself: the metric's
@@ -50,6 +79,15 @@ void bcli_print_paper(GArray *rows);
  * peak <= 256 MB; issue 6: TSM-180 <= 0.2 s, TSM-18 <= 0.03 s, direct
  * <= 2 s) against the 200^2, 100-frame binary rows. */
 void bcli_print_targets(GArray *rows);
+
+/* The skips preset (bench_skips.c): data sets and configurations, then
+ * the report of each skip on/off (time saved, error cost) and where auto
+ * lands against the Pareto front. */
+int bcli_run_skips(bcli_ctx *c);
+void bcli_print_skips(GArray *rows);
+/* For every auto row: on its data set's front, or the front point that
+ * dominates it. */
+void bcli_print_auto(GArray *rows);
 
 int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb);
 int bcli_write_png(const char *path, GArray *rows);

@@ -14,11 +14,45 @@ static int ok(const bcli_row *r) { return r->status == SL_OK; }
 static double err1(const bcli_row *r) { return 1.0 - r->s.c; }
 static int is_binary(const bcli_row *r) { return !strcmp(r->scene, "binary"); }
 
+/* " [crop,support]" for rows with skips other than the method's default. */
+static void skips_suffix(const bcli_row *r, char *buf, size_t n)
+{
+    buf[0] = 0;
+    if (r->skips < 0 || (r->method == PIPE_AUTO && r->skips == PIPE_SKIP_ALL))
+        return;
+    char k[48];
+    if (r->method == PIPE_AUTO) { /* auto has all: name what is left out */
+        pipeline_skips_name(PIPE_SKIP_ALL & ~r->skips, k, sizeof k);
+        snprintf(buf, n, " [-%s]", k);
+        for (char *c = buf; *c; c++)
+            if (*c == ',')
+                *c = '-';
+        return;
+    }
+    pipeline_skips_name(r->skips, k, sizeof k);
+    snprintf(buf, n, " [%s]", r->skips == 0 ? "none" : k);
+}
+
 void bcli_config_label(const bcli_row *r, char *buf, size_t n)
 {
     const char *m = pipeline_method_name(r->method);
-    const char *ref = r->ref ? " +ref" : "";
-    if (r->method == PIPE_DIRECT) {
+    char ref[64];
+    skips_suffix(r, ref, sizeof ref);
+    if (r->ref)
+        snprintf(ref + strlen(ref), sizeof ref - strlen(ref), " +ref");
+    if (r->method == PIPE_AUTO) {
+        /* auto(E) and what ran: "auto .1: direct/64" */
+        char ran[40] = "?";
+        int mr = r->t.method_run;
+        if (mr == PIPE_DIRECT)
+            snprintf(ran, sizeof ran, "direct");
+        else if (mr == PIPE_TSM || mr == PIPE_TSM_FOURIER)
+            snprintf(ran, sizeof ran, "%s %.0f%s", mr == PIPE_TSM ? "tsm" : "tsmf",
+                     r->t.nangles, strstr(r->t.chosen, " iter") ? "i" : "");
+        if (isfinite(r->t.crop_px))
+            snprintf(ran + strlen(ran), sizeof ran - strlen(ran), "/%.0f", r->t.crop_px);
+        snprintf(buf, n, "auto %g%s: %s", r->target > 0 ? r->target : 0.1, ref, ran);
+    } else if (r->method == PIPE_DIRECT) {
         if (isfinite(r->t.r2_px))
             snprintf(buf, n, "%s R2=%.0f%s", m, r->t.r2_px, ref);
         else if (r->r2 > 0)
@@ -41,15 +75,19 @@ static void scene_label(const bcli_row *r, char *buf, size_t n)
         snprintf(buf, n, "binary %g/%g", r->sep_lod, r->dm_mag);
     else
         snprintf(buf, n, "%s", r->scene);
+    if (r->inject)
+        snprintf(buf + strlen(buf), n - strlen(buf), " bad");
+    if (r->oversample > 1)
+        snprintf(buf + strlen(buf), n - strlen(buf), " os%g", r->oversample);
 }
 
 void bcli_print_header(void)
 {
-    printf("%-14s %-9s %5s %7s %-24s | %7s %7s %7s %6s | %7s %7s | %7s %7s %7s\n",
+    printf("%-14s %-9s %5s %7s %-30s | %7s %7s %7s %6s | %7s %7s | %7s %7s %7s\n",
            "scene", "size", "frm", "photons", "config", "wall_s", "cpu_s",
            "first_s", "rss_MB", "1-c", "1-c_hp", "dsep_px", "dPA_deg",
            "ddm_mag");
-    printf("%-14s %-9s %5s %7s %-24s |\n", "(binary sep", "", "", "",
+    printf("%-14s %-9s %5s %7s %-30s |\n", "(binary sep", "", "", "",
            "lambda/D / dm)");
 }
 
@@ -67,7 +105,7 @@ void bcli_print_row(const bcli_row *r)
     scene_label(r, sc, sizeof sc);
     bcli_config_label(r, cfg, sizeof cfg);
     snprintf(size, sizeof size, "%dx%d", r->width, r->height);
-    printf("%-14s %-9s %5d %7g %-24s |", sc, size, r->frames, r->photons, cfg);
+    printf("%-14s %-9s %5d %7g %-30s |", sc, size, r->frames, r->photons, cfg);
     if (!ok(r) && !isfinite(r->t.wall_s)) {
         printf(" FAILED: %s\n", r->msg);
         fflush(stdout);
@@ -99,7 +137,8 @@ static int same_data(const bcli_row *a, const bcli_row *b)
     return !strcmp(a->scene, b->scene) && a->width == b->width &&
            a->height == b->height && a->frames == b->frames &&
            a->photons == b->photons && a->sep_lod == b->sep_lod &&
-           a->dm_mag == b->dm_mag && a->pa_deg == b->pa_deg;
+           a->dm_mag == b->dm_mag && a->pa_deg == b->pa_deg &&
+           a->inject == b->inject && a->oversample == b->oversample;
 }
 
 void bcli_mark_fronts(GArray *rows)
@@ -170,7 +209,7 @@ void bcli_print_fronts(GArray *rows)
         for (int k = 0; k < m; k++) {
             char cfg[64];
             bcli_config_label(f[k], cfg, sizeof cfg);
-            printf("  %-24s %8.3f s  1-c %.4f\n", cfg, f[k]->t.wall_s, err1(f[k]));
+            printf("  %-30s %8.3f s  1-c %.4f\n", cfg, f[k]->t.wall_s, err1(f[k]));
         }
     }
     free(f);
@@ -193,6 +232,8 @@ static int same_but(const bcli_row *a, const bcli_row *b, int var)
     return !strcmp(a->scene, b->scene) && a->photons == b->photons &&
            a->sep_lod == b->sep_lod && a->dm_mag == b->dm_mag &&
            a->method == b->method && a->r2 == b->r2 && a->ref == b->ref &&
+           a->skips == b->skips && a->target == b->target &&
+           a->inject == b->inject && a->oversample == b->oversample &&
            (var == VAR_FRAMES || a->frames == b->frames) &&
            (var == VAR_PIXELS || (a->width == b->width && a->height == b->height)) &&
            (var == VAR_ANGLES || a->nangles == b->nangles);
@@ -232,7 +273,7 @@ void bcli_print_scaling(GArray *rows)
                     hi = fmax(hi, var_value(&r[j], var));
                 }
             double den = m * sxx - sx * sx;
-            if (m < 3 || !(den > 0))
+            if (m < 3 || !(den > 0) || !(hi > lo))
                 continue;
             if (!header++)
                 printf("\n# Scaling: least-squares slope of log(wall time) "
@@ -283,7 +324,8 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
             "first_cpu_s,peak_rss_mb,base_rss_mb,ntriples,c,c_hp,err_1mc,"
             "err_hp,sep_px,pa_deg_meas,dm_mag_meas,sep_err_px,pa_err_deg,"
             "dm_err_mag,floor_sep_err_px,floor_pa_err_deg,floor_dm_err_mag,"
-            "group,pareto,status\n");
+            "group,pareto,status,skips,target_error,bad_frames,oversample,"
+            "method_run,crop_px,cutoff_cyc_px,rejected,pred_error,chosen\n");
     for (guint i = 0; i < rows->len; i++) {
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
         int bin = is_binary(r);
@@ -309,7 +351,18 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
         fprintf(f, ",%d,%d,\"", r->group, r->front);
         for (const char *p = ok(r) ? "ok" : r->msg; *p; p++)
             fprintf(f, *p == '"' ? "\"\"" : "%c", *p);
-        fprintf(f, "\"\n");
+        char sk[48];
+        pipeline_skips_name(r->skips < 0 ? 0 : r->skips, sk, sizeof sk);
+        fprintf(f, "\",%s", r->skips < 0 ? "default" : sk);
+        csv_num(f, r->method == PIPE_AUTO ? (r->target > 0 ? r->target : 0.1) : NAN);
+        fprintf(f, ",%d", r->inject);
+        csv_num(f, r->oversample > 1 ? r->oversample : 1);
+        fprintf(f, ",%s", r->t.method_run >= 0 ? pipeline_method_name(r->t.method_run) : "");
+        csv_num(f, r->t.crop_px);
+        csv_num(f, r->t.cutoff_cyc_px);
+        csv_num(f, r->t.rejected);
+        csv_num(f, r->t.pred_error);
+        fprintf(f, ",\"%s\"\n", r->t.chosen);
     }
     int bad = ferror(f) | (fclose(f) != 0);
     if (bad)
@@ -324,7 +377,8 @@ int bcli_write_png(const char *path, GArray *rows)
     static const bench_series series[] = {
         {"DIRECT", PLOT_CIRCLE, 0, 0.0f}, {"DIRECT + REF", PLOT_CIRCLE, 1, 0.0f},
         {"TSM", PLOT_TRIANGLE, 0, 0.45f}, {"TSM + REF", PLOT_TRIANGLE, 1, 0.45f},
-        {"TSM-FOURIER", PLOT_SQUARE, 0, 0.3f}, {"TSM-FOURIER + REF", PLOT_SQUARE, 1, 0.3f}};
+        {"TSM-FOURIER", PLOT_SQUARE, 0, 0.3f}, {"TSM-FOURIER + REF", PLOT_SQUARE, 1, 0.3f},
+        {"AUTO", PLOT_DIAMOND, 1, 0.0f}, {"AUTO + REF", PLOT_DIAMOND, 0, 0.0f}};
     enum { MAXP = 12 };
     char titles[MAXP][112];
     const char *tp[MAXP];
@@ -355,7 +409,8 @@ int bcli_write_png(const char *path, GArray *rows)
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
         for (int k = 0; k < np && ok(r); k++)
             if (gid[k] == r->group) {
-                int s = r->method == PIPE_DIRECT ? 0 : r->method == PIPE_TSM ? 2 : 4;
+                int s = r->method == PIPE_DIRECT ? 0 : r->method == PIPE_TSM ? 2
+                      : r->method == PIPE_AUTO ? 6 : 4;
                 pts[m++] = (bench_point){r->t.wall_s, err1(r), s + r->ref, k, r->front};
             }
     }
@@ -363,7 +418,7 @@ int bcli_write_png(const char *path, GArray *rows)
     sl_err e = {0};
     if (np == 0)
         fprintf(stderr, "bench: no data set has 3 measured points: no chart\n");
-    else if (bench_plot_png(path, pts, m, series, 6, tp, np, &e) != SL_OK)
+    else if (bench_plot_png(path, pts, m, series, 8, tp, np, &e) != SL_OK)
         rc = fprintf(stderr, "specklab bench: %s\n", e.msg) > 0;
     else
         fprintf(stderr, "bench: wrote %s (%d panels)\n", path, np);

@@ -12,15 +12,18 @@
  * (seed + 1000, same size, frames and photons) and the cophased point
  * source as --target.
  *
- * Presets: --quick (a handful of points, < 1 min, `make bench`), --speed
+ * Presets: --quick (a handful of points, < 1 min, `make bench`),
+ * --skips-report (bench_skips.c: each skip of issue 6 item 4 on and off,
+ * and auto against fixed TSM-180), --speed
  * (issue 3's and 6's speed targets at 100 frames of 200^2, median of 5
  * runs, checked), the
  * default (the method grid on three scenes and two photon levels, plus
  * size and frame-count scaling; a few minutes), --paper (Table 2's layout
  * at 200^2 and 128^2, or --sizes, and a binaries table at the first
  * size; --paper ignores the other selections).  Any of --scenes, --sizes, --frames, --photons,
- * --methods, --projections, --r2, --ref replaces the preset's main sweep
- * by one sweep built from the preset's lists with those replaced.
+ * --methods, --projections, --r2, --ref, --target-error, --skips replaces
+ * the preset's main sweep by one sweep built from the preset's lists with
+ * those replaced.  Method auto is measured once per target error.
  */
 #include <errno.h>
 #include <math.h>
@@ -35,9 +38,9 @@
 #include "pipeline.h"
 
 typedef struct bench_args {
-    gboolean quick, paper, speed, estimate, keep_data;
+    gboolean quick, paper, speed, skips_report, estimate, keep_data;
     char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
-    char *seps, *dms, *ref, *csv, *png, *catalog, *dir;
+    char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
     int repeat, threads;
     gint64 seed;
 } bench_args;
@@ -48,32 +51,32 @@ typedef struct sweep {
     const char *r2, *ref;
     int block;
     const char *seps, *dms;   /* binary geometry; NULL: "6", "1" */
+    const char *targets;      /* auto's target errors; NULL: "0.1" */
+    const char *skips;        /* skip sets "a,b/c/none"; NULL: default */
 } sweep;
 
 static const sweep quick_sweeps[] = {
     {"binary,six-star", "128", "50", "0", "direct,tsm,tsm-fourier", "18,180",
-     "0", "both", 0, NULL, NULL},
+     "0", "both", 0, NULL, NULL, NULL, NULL},
 };
 
 static const sweep speed_sweeps[] = {
     {"binary", "200", "100", "0", "direct,tsm,tsm-fourier", "18,180", "28",
-     "no", 0, NULL, NULL},
+     "no", 0, NULL, NULL, NULL, NULL},
 };
 
 static const sweep default_sweeps[] = {
     {"binary,six-star,extended", "128", "100", "0,1000",
-     "direct,tsm,tsm-fourier", "6,18,36,90,180,360", "8,16,28", "both", 0, NULL, NULL},
+     "direct,tsm,tsm-fourier", "6,18,36,90,180,360", "8,16,28", "both", 0, NULL, NULL, NULL, NULL},
     /* Scaling: size (TSM to 512^2; direct's dense R2 = 0.14 N grows as
      * N^4, so it stops at 256^2), then frame count. */
-    {"binary", "64,128,256,512", "100", "0", "tsm-fourier", "180", "0", "no", 3, NULL, NULL},
-    {"binary", "64,128,256", "100", "0", "direct", "180", "0", "no", 3, NULL, NULL},
+    {"binary", "64,128,256,512", "100", "0", "tsm-fourier", "180", "0", "no", 3, NULL, NULL, NULL, NULL},
+    {"binary", "64,128,256", "100", "0", "direct", "180", "0", "no", 3, NULL, NULL, NULL, NULL},
     {"binary", "128", "10,30,100,300,1000", "0", "direct,tsm-fourier", "180",
-     "0", "no", 3, NULL, NULL},
+     "0", "no", 3, NULL, NULL, NULL, NULL},
 };
 
-typedef struct config {
-    int method, param, ref; /* param: R2 (direct) or projections (TSM) */
-} config;
+typedef bcli_config config;
 
 typedef struct refset {
     int w, h, n;
@@ -81,89 +84,36 @@ typedef struct refset {
     char *cube, *psf;
 } refset;
 
-typedef struct ctx {
+struct bcli_ctx {
     const bench_args *a;
     char *dir;
     GArray *rows;      /* bcli_row */
     GArray *refs;      /* refset */
     int ndata;         /* data sets simulated (file names) */
     int failures;
-} ctx;
+};
+typedef bcli_ctx ctx;
 
 /* ---- option lists ---- */
 
 static gchar **split(const char *s) { return g_strsplit(s, ",", -1); }
 
-static int parse_ints(const char *what, const char *s, int lo, int hi,
-                      GArray *out)
-{
-    gchar **v = split(s);
-    int rc = 0;
-    for (int i = 0; v[i] && !rc; i++) {
-        char *end = NULL;
-        long x = strtol(v[i], &end, 10);
-        if (end == v[i] || *end || x < lo || x > hi) {
-            fprintf(stderr, "specklab bench: --%s '%s': expected integers "
-                    "%d..%d\n", what, v[i], lo, hi);
-            rc = 2;
-        } else {
-            int xi = (int)x;
-            g_array_append_val(out, xi);
-        }
-    }
-    g_strfreev(v);
-    return rc;
-}
-
-static int parse_doubles(const char *what, const char *s, GArray *out)
-{
-    gchar **v = split(s);
-    int rc = 0;
-    for (int i = 0; v[i] && !rc; i++) {
-        char *end = NULL;
-        double x = g_ascii_strtod(v[i], &end);
-        if (end == v[i] || *end || !(x >= 0) || !isfinite(x)) {
-            fprintf(stderr, "specklab bench: --%s '%s': expected numbers "
-                    ">= 0\n", what, v[i]);
-            rc = 2;
-        } else {
-            g_array_append_val(out, x);
-        }
-    }
-    g_strfreev(v);
-    return rc;
-}
-
-/* Sizes as pairs (w, h). */
-static int parse_sizes(const char *s, GArray *out)
-{
-    gchar **v = split(s);
-    int rc = 0;
-    for (int i = 0; v[i] && !rc; i++) {
-        int wh[2];
-        GError *e = NULL;
-        if (!cli_parse_size(v[i], &wh[0], &wh[1], &e)) {
-            fprintf(stderr, "specklab bench: %s\n", e->message);
-            g_error_free(e);
-            rc = 2;
-        } else {
-            g_array_append_vals(out, wh, 2);
-        }
-    }
-    g_strfreev(v);
-    return rc;
-}
-
-/* Configurations: direct x R2, TSM variants x projections, any other
- * method once; each without and/or with the reference. */
+/* Configurations: direct x R2, TSM variants x projections, auto x target
+ * errors; each x skip sets, without and/or with the reference. */
 static int parse_configs(const sweep *sw, GArray *out)
 {
     GArray *proj = g_array_new(FALSE, FALSE, sizeof(int));
     GArray *r2 = g_array_new(FALSE, FALSE, sizeof(int));
+    GArray *tg = g_array_new(FALSE, FALSE, sizeof(double));
+    GArray *sk = g_array_new(FALSE, FALSE, sizeof(int));
     gchar **m = split(sw->methods);
-    int rc = parse_ints("projections", sw->projections, 2, 3600, proj);
+    int rc = bcli_parse_ints("projections", sw->projections, 2, 3600, proj);
     if (!rc)
-        rc = parse_ints("r2", sw->r2, 0, 144, r2);
+        rc = bcli_parse_ints("r2", sw->r2, 0, 144, r2);
+    if (!rc)
+        rc = bcli_parse_doubles("target-error", sw->targets ? sw->targets : "0.1", tg);
+    if (!rc)
+        rc = bcli_parse_skip_sets(sw->skips, sk);
     int refs[2], nref = 0;
     if (!strcmp(sw->ref, "no") || !strcmp(sw->ref, "both"))
         refs[nref++] = 0;
@@ -177,20 +127,28 @@ static int parse_configs(const sweep *sw, GArray *out)
         int meth;
         if (pipeline_method_parse(m[i], &meth) != SL_OK) {
             fprintf(stderr, "specklab bench: unknown method '%s' (direct, tsm, "
-                    "tsm-fourier)\n", m[i]);
+                    "tsm-fourier, auto)\n", m[i]);
             rc = 2;
             break;
         }
-        GArray *params = meth == PIPE_DIRECT ? r2 : proj;
+        int np = meth == PIPE_DIRECT ? (int)r2->len
+               : meth == PIPE_AUTO ? (int)tg->len : (int)proj->len;
         for (int r = 0; r < nref; r++)
-            for (guint k = 0; k < params->len; k++) {
-                config c = {meth, g_array_index(params, int, k), refs[r]};
-                g_array_append_val(out, c);
-            }
+            for (guint q = 0; q < sk->len; q++)
+                for (int k = 0; k < np; k++) {
+                    config c = {meth, 0, refs[r], g_array_index(sk, int, q), 0};
+                    if (meth == PIPE_AUTO)
+                        c.target = g_array_index(tg, double, k);
+                    else
+                        c.param = g_array_index(meth == PIPE_DIRECT ? r2 : proj, int, k);
+                    g_array_append_val(out, c);
+                }
     }
     g_strfreev(m);
     g_array_free(proj, TRUE);
     g_array_free(r2, TRUE);
+    g_array_free(tg, TRUE);
+    g_array_free(sk, TRUE);
     return rc;
 }
 
@@ -234,7 +192,9 @@ static int same_point(const bcli_row *a, const bench_sim *d, const config *cf)
            a->height == d->height && a->frames == d->nframes &&
            a->photons == d->photons && a->sep_lod == d->sep_lod &&
            a->dm_mag == d->dm_mag && a->method == cf->method &&
-           a->ref == cf->ref && (cf->method == PIPE_DIRECT ? a->r2 : a->nangles) == cf->param;
+           a->ref == cf->ref && a->skips == cf->skips && a->target == cf->target &&
+           a->inject == d->bad_frames && a->oversample == d->oversample &&
+           (cf->method == PIPE_DIRECT ? a->r2 : a->nangles) == cf->param;
 }
 
 static void measure_one(ctx *c, const bench_sim *d, const char *cube,
@@ -255,6 +215,10 @@ static void measure_one(ctx *c, const bench_sim *d, const char *cube,
     r.dm_mag = d->dm_mag;
     r.method = cf->method;
     r.ref = cf->ref;
+    r.skips = cf->skips;
+    r.target = cf->target;
+    r.inject = d->bad_frames;
+    r.oversample = d->oversample;
     r.repeat = a->repeat;
     r.threads = a->threads;
     r.block = block;
@@ -266,6 +230,8 @@ static void measure_one(ctx *c, const bench_sim *d, const char *cube,
         o.r2_px = r.r2 = cf->param;
     else
         o.nangles = r.nangles = cf->param;
+    o.skips = cf->skips;
+    o.target_error = cf->target;
     o.nthreads = a->threads;
     o.fftw_measure = !a->estimate;
     if (cf->ref) {
@@ -287,8 +253,8 @@ static void measure_one(ctx *c, const bench_sim *d, const char *cube,
 }
 
 /* Simulate one data set and measure every configuration on it. */
-static int run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
-                       int block)
+int bcli_run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
+                     int block)
 {
     int need_ref = 0, todo = 0;
     for (int i = 0; i < ncf; i++) {
@@ -309,8 +275,10 @@ static int run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
     sl_err e = {0};
     bench_truth truth = {0};
     float *img = malloc(sizeof(float) * (size_t)d->width * (size_t)d->height);
-    fprintf(stderr, "bench: simulating %s, %dx%d, %d frames, %g photons\n",
-            d->scene, d->width, d->height, d->nframes, d->photons);
+    fprintf(stderr, "bench: simulating %s, %dx%d, %d frames, %g photons%s%s\n",
+            d->scene, d->width, d->height, d->nframes, d->photons,
+            d->bad_frames ? ", bad frames injected" : "",
+            d->oversample > 1 ? ", oversampled" : "");
     int rc = !img ? sl_seterr(&e, SL_ENOMEM, "out of memory")
                   : bench_sim_write(d, cube, NULL, &e);
     bench_score mfloor;
@@ -352,15 +320,15 @@ static int run_sweep(ctx *c, const sweep *sw)
     GArray *seps = g_array_new(FALSE, FALSE, sizeof(double));
     GArray *dms = g_array_new(FALSE, FALSE, sizeof(double));
     gchar **scenes = split(sw->scenes);
-    int rc = parse_sizes(sw->sizes, sizes);
+    int rc = bcli_parse_sizes(sw->sizes, sizes);
     if (!rc)
-        rc = parse_doubles("seps", sw->seps ? sw->seps : "6", seps);
+        rc = bcli_parse_doubles("seps", sw->seps ? sw->seps : "6", seps);
     if (!rc)
-        rc = parse_doubles("dms", sw->dms ? sw->dms : "1", dms);
+        rc = bcli_parse_doubles("dms", sw->dms ? sw->dms : "1", dms);
     if (!rc)
-        rc = parse_ints("frames", sw->frames, 1, 100000, frames);
+        rc = bcli_parse_ints("frames", sw->frames, 1, 100000, frames);
     if (!rc)
-        rc = parse_doubles("photons", sw->photons, photons);
+        rc = bcli_parse_doubles("photons", sw->photons, photons);
     if (!rc)
         rc = parse_configs(sw, cfs);
     for (int s = 0; scenes[s] && !rc; s++)
@@ -381,7 +349,7 @@ static int run_sweep(ctx *c, const sweep *sw)
                         d.sep_lod = g_array_index(seps, double, q / dms->len);
                         d.dm_mag = g_array_index(dms, double, q % dms->len);
                         d.seed = (uint64_t)c->a->seed;
-                        rc = run_dataset(c, &d, (config *)(void *)cfs->data,
+                        rc = bcli_run_dataset(c, &d, (config *)(void *)cfs->data,
                                          (int)cfs->len, sw->block);
                     }
     g_strfreev(scenes);
@@ -400,13 +368,13 @@ static int run_sweep(ctx *c, const sweep *sw)
 static int run_paper(ctx *c)
 {
     static const config t2[] = {
-        {PIPE_DIRECT, 0, 0}, {PIPE_TSM, 180, 0}, {PIPE_TSM, 18, 0},
-        {PIPE_TSM_FOURIER, 180, 0}, {PIPE_TSM_FOURIER, 18, 0},
-        {PIPE_DIRECT, 0, 1}, {PIPE_TSM, 180, 1}, {PIPE_TSM, 18, 1},
-        {PIPE_TSM_FOURIER, 180, 1}, {PIPE_TSM_FOURIER, 18, 1}};
+        {PIPE_DIRECT, 0, 0, -1, 0}, {PIPE_TSM, 180, 0, -1, 0}, {PIPE_TSM, 18, 0, -1, 0},
+        {PIPE_TSM_FOURIER, 180, 0, -1, 0}, {PIPE_TSM_FOURIER, 18, 0, -1, 0},
+        {PIPE_DIRECT, 0, 1, -1, 0}, {PIPE_TSM, 180, 1, -1, 0}, {PIPE_TSM, 18, 1, -1, 0},
+        {PIPE_TSM_FOURIER, 180, 1, -1, 0}, {PIPE_TSM_FOURIER, 18, 1, -1, 0}};
     static const char *const scenes[] = {"six-star", "extended"};
     GArray *sizes = g_array_new(FALSE, FALSE, sizeof(int));
-    int rc = parse_sizes(c->a->sizes ? c->a->sizes : "200,128", sizes);
+    int rc = bcli_parse_sizes(c->a->sizes ? c->a->sizes : "200,128", sizes);
     for (guint z = 0; z + 1 < sizes->len && !rc; z += 2)
         for (int s = 0; s < 2 && !rc; s++) {
             bench_sim d;
@@ -415,13 +383,13 @@ static int run_paper(ctx *c)
             d.width = g_array_index(sizes, int, z);
             d.height = g_array_index(sizes, int, z + 1);
             d.seed = (uint64_t)c->a->seed;
-            rc = run_dataset(c, &d, t2, 10, 1);
+            rc = bcli_run_dataset(c, &d, t2, 10, 1);
         }
     static const config bin[] = {
-        {PIPE_DIRECT, 0, 0}, {PIPE_TSM, 180, 0}, {PIPE_TSM, 18, 0},
-        {PIPE_TSM_FOURIER, 180, 0},
-        {PIPE_DIRECT, 0, 1}, {PIPE_TSM, 180, 1}, {PIPE_TSM, 18, 1},
-        {PIPE_TSM_FOURIER, 180, 1}};
+        {PIPE_DIRECT, 0, 0, -1, 0}, {PIPE_TSM, 180, 0, -1, 0}, {PIPE_TSM, 18, 0, -1, 0},
+        {PIPE_TSM_FOURIER, 180, 0, -1, 0},
+        {PIPE_DIRECT, 0, 1, -1, 0}, {PIPE_TSM, 180, 1, -1, 0}, {PIPE_TSM, 18, 1, -1, 0},
+        {PIPE_TSM_FOURIER, 180, 1, -1, 0}};
     static const double seps[] = {5, 10, 15, 20}, dms[] = {0, 1, 2};
     for (int i = 0; i < 4 && !rc && sizes->len >= 2; i++)
         for (int j = 0; j < 3 && !rc; j++) {
@@ -433,7 +401,7 @@ static int run_paper(ctx *c)
             d.dm_mag = dms[j];
             d.pa_deg = 30 + 25 * (3 * i + j); /* spread PAs over the circle */
             d.seed = (uint64_t)c->a->seed + 1 + (uint64_t)(3 * i + j);
-            rc = run_dataset(c, &d, bin, 8, 2);
+            rc = bcli_run_dataset(c, &d, bin, 8, 2);
         }
     g_array_free(sizes, TRUE);
     return rc;
@@ -442,7 +410,8 @@ static int run_paper(ctx *c)
 static int selection_given(const bench_args *a)
 {
     return a->scenes || a->sizes || a->frames || a->photons || a->methods ||
-           a->projections || a->r2 || a->ref || a->seps || a->dms;
+           a->projections || a->r2 || a->ref || a->seps || a->dms ||
+           a->targets || a->skips;
 }
 
 static int run_all(ctx *c)
@@ -450,6 +419,8 @@ static int run_all(ctx *c)
     const bench_args *a = c->a;
     if (a->paper)
         return run_paper(c);
+    if (a->skips_report)
+        return bcli_run_skips(c);
     const sweep *list = a->quick ? quick_sweeps : a->speed ? speed_sweeps
                                                            : default_sweeps;
     int n = a->quick ? (int)G_N_ELEMENTS(quick_sweeps)
@@ -467,6 +438,8 @@ static int run_all(ctx *c)
         one.ref = a->ref ? a->ref : one.ref;
         one.seps = a->seps ? a->seps : one.seps;
         one.dms = a->dms ? a->dms : one.dms;
+        one.targets = a->targets ? a->targets : one.targets;
+        one.skips = a->skips ? a->skips : one.skips;
         return run_sweep(c, &one);
     }
     int rc = 0;
@@ -514,7 +487,8 @@ static int bench_main(bench_args *a)
            "FFTW_%s, 17-hole mask, r0 0.2 m, wind 10 m/s, 500 nm, Nyquist\n"
            "# time: wall/CPU of pipeline_run on the FITS file; rss: the "
            "child's peak (fork floor %.1f MB)\n", a->paper ? "paper" :
-           a->quick ? "quick" : a->speed ? "speed" : "default", a->repeat,
+           a->quick ? "quick" : a->speed ? "speed" : a->skips_report ? "skips" :
+           "default", a->repeat,
            a->estimate ? "ESTIMATE" : "MEASURE", base);
     bcli_print_header();
     int rc = run_all(&c);
@@ -525,6 +499,9 @@ static int bench_main(bench_args *a)
         bcli_print_paper(c.rows);
     if (a->speed)
         bcli_print_targets(c.rows);
+    bcli_print_auto(c.rows);
+    if (a->skips_report)
+        bcli_print_skips(c.rows);
     int out = 0;
     fflush(stdout);
     const char *csv = a->csv ? a->csv : "bench.csv";
@@ -554,11 +531,14 @@ int cmd_bench(int argc, char **argv)
         {"quick", 0, 0, G_OPTION_ARG_NONE, &a.quick, "a handful of points (< 1 min; make bench)", NULL},
         {"paper", 0, 0, G_OPTION_ARG_NONE, &a.paper, "the paper's Table 2 layout and a binaries table", NULL},
         {"speed", 0, 0, G_OPTION_ARG_NONE, &a.speed, "the speed targets of issues 3 and 6 (200^2, 100 frames, 5 runs)", NULL},
+        {"skips-report", 0, 0, G_OPTION_ARG_NONE, &a.skips_report, "each skip on/off and auto against fixed TSM-180 (200^2, 100 frames)", NULL},
         {"scenes", 0, 0, G_OPTION_ARG_STRING, &a.scenes, "binary,six-star,extended", "LIST"},
         {"sizes", 0, 0, G_OPTION_ARG_STRING, &a.sizes, "frame sizes, N or WxH (e.g. 64,128,200; --paper: 200,128)", "LIST"},
         {"frames", 0, 0, G_OPTION_ARG_STRING, &a.frames, "frame counts (e.g. 10,100,1000)", "LIST"},
         {"photons", 0, 0, G_OPTION_ARG_STRING, &a.photons, "photons per frame, 0 = noiseless (e.g. 0,1000)", "LIST"},
-        {"methods", 0, 0, G_OPTION_ARG_STRING, &a.methods, "direct,tsm,tsm-fourier", "LIST"},
+        {"methods", 0, 0, G_OPTION_ARG_STRING, &a.methods, "direct,tsm,tsm-fourier,auto", "LIST"},
+        {"target-error", 0, 0, G_OPTION_ARG_STRING, &a.targets, "auto's target errors 1 - c (default 0.1; e.g. 0.06,0.1,0.2)", "LIST"},
+        {"skips", 0, 0, G_OPTION_ARG_STRING, &a.skips, "skip sets, / between sets (e.g. none/crop/all; default: all for auto, none otherwise)", "SETS"},
         {"projections", 0, 0, G_OPTION_ARG_STRING, &a.projections, "TSM projection counts (e.g. 6,18,180,360)", "LIST"},
         {"r2", 0, 0, G_OPTION_ARG_STRING, &a.r2, "direct |u2| radii in px, 0 = 0.14 N (e.g. 8,16,28)", "LIST"},
         {"seps", 0, 0, G_OPTION_ARG_STRING, &a.seps, "binary separations in lambda/D, D = mask extent (default 6)", "LIST"},
@@ -592,9 +572,10 @@ int cmd_bench(int argc, char **argv)
     if (a.repeat == 0)
         a.repeat = a.speed ? 5 : 1;
     if (a.repeat < 1 || a.repeat > BENCH_MAX_REPEAT || a.threads < 0 ||
-        a.quick + a.paper + a.speed > 1) {
+        a.quick + a.paper + a.speed + a.skips_report > 1) {
         fprintf(stderr, "specklab bench: --repeat 1..%d, --threads >= 0, and "
-                "at most one of --quick/--paper/--speed\n", BENCH_MAX_REPEAT);
+                "at most one of --quick/--paper/--speed/--skips-report\n",
+                BENCH_MAX_REPEAT);
         goto free_ctx;
     }
     status = bench_main(&a);
@@ -602,7 +583,7 @@ free_ctx:
     g_option_context_free(ctx_);
     g_free(a.scenes); g_free(a.sizes); g_free(a.frames); g_free(a.photons);
     g_free(a.methods); g_free(a.projections); g_free(a.r2); g_free(a.ref);
-    g_free(a.seps); g_free(a.dms);
+    g_free(a.seps); g_free(a.dms); g_free(a.targets); g_free(a.skips);
     g_free(a.csv); g_free(a.png); g_free(a.catalog); g_free(a.dir);
     return status;
 }

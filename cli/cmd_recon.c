@@ -14,10 +14,41 @@
 #include "preview.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch;
+    char *method, *out, *png, *ref, *target, *window, *stretch, *skips;
     int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine;
-    double photons, gain_adu_per_photon, saturation, wiener;
+    double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
+
+/* The scene probe's numbers and the choice (pipeline.h), as recorded in
+ * the header: JSON member name, keyword. */
+static const char *const probe_keys[][2] = {
+    {"probed_frames", "RECPRBN"}, {"crop_x", "RECCROPX"}, {"crop_y", "RECCROPY"},
+    {"crop_width", "RECCROPW"}, {"crop_height", "RECCROPH"},
+    {"cloud_radius_px", "RECCLOUD"}, {"cloud_level", "RECCLEVL"},
+    {"crop_flux_fraction", "RECCFLUX"}, {"support_cyc_px", "RECSUPP"},
+    {"support_fraction", "RECSFRAC"}, {"extent_px", "RECEXTNT"}, {"snr", "RECSNR"},
+    {"rejected", "RECREJ"}, {"rejected_empty", "RECREJE"},
+    {"rejected_saturated", "RECREJS"}, {"rejected_flux", "RECREJF"},
+    {"rejected_sharpness", "RECREJQ"}, {"reject_mad", "RECREJK"},
+    {"target_error", "RECTGERR"}, {"predicted_error", "RECPRED"},
+    {"predicted_cpu_s", "RECPCOST"}};
+
+static void probe_json(JsonBuilder *b, const cube_meta *m)
+{
+    const char *str;
+    if (cube_meta_get_str(m, "RECSKIPS", &str) != SL_OK)
+        return;
+    cli_json_str(b, "skips", str);
+    if (cube_meta_get_str(m, "RECCHOSE", &str) == SL_OK)
+        cli_json_str(b, "chosen", str);
+    json_builder_set_member_name(b, "scene");
+    json_builder_begin_object(b);
+    double v;
+    for (size_t i = 0; i < sizeof probe_keys / sizeof probe_keys[0]; i++)
+        if (cube_meta_get_num(m, probe_keys[i][1], &v) == SL_OK)
+            cli_json_num(b, probe_keys[i][0], v);
+    json_builder_end_object(b);
+}
 
 static void recon_report(const recon_args *a, const pipeline_opts *o,
                          const pipeline_result *r, const char *input)
@@ -27,17 +58,21 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         json_builder_begin_object(b);
         cli_json_str(b, "input", input);
         cli_json_str(b, "output", a->out);
-        cli_json_str(b, "method", pipeline_method_name(o->method));
+        const char *ran = pipeline_method_name(o->method);
+        cube_meta_get_str(&r->meta, "RECMETH", &ran);
+        cli_json_str(b, "method", ran);
+        cli_json_str(b, "requested", pipeline_method_name(o->method));
         json_builder_set_member_name(b, "parameters");
         json_builder_begin_object(b);
         double v;
         static const char *keys[] = {"RECNANG", "RECR2", "RECRCUT", "RECNTRI",
-                                     "RECNPAIR", "RECPHOT", "RECGAIN"};
+                                     "RECNPAIR", "RECPHOT", "RECGAIN", "RECCUT"};
         for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
             if (cube_meta_get_num(&r->meta, keys[i], &v) == SL_OK)
                 cli_json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
         cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
         json_builder_end_object(b);
+        probe_json(b, &r->meta);
         json_builder_set_member_name(b, "frames");
         json_builder_add_int_value(b, r->nframes);
         json_builder_set_member_name(b, "width");
@@ -51,9 +86,20 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         cli_print_json(b);
         g_object_unref(b);
     } else if (!a->quiet) {
+        const char *ran = pipeline_method_name(o->method), *chosen = NULL;
+        cube_meta_get_str(&r->meta, "RECMETH", &ran);
         printf("%s: %s of %d frames (%dx%d) -> %s in %.3f s, peak %.0f MB\n",
-               input, pipeline_method_name(o->method), r->nframes, r->width,
-               r->height, a->out, r->elapsed_s, cli_peak_rss_mb());
+               input, ran, r->nframes, r->width, r->height, a->out,
+               r->elapsed_s, cli_peak_rss_mb());
+        double cw, ch, rej, pred;
+        if (cube_meta_get_num(&r->meta, "RECCROPW", &cw) == SL_OK &&
+            cube_meta_get_num(&r->meta, "RECCROPH", &ch) == SL_OK &&
+            cube_meta_get_num(&r->meta, "RECREJ", &rej) == SL_OK)
+            printf("  skips: reconstructed on %.0fx%.0f, %.0f frame(s) rejected\n",
+                   cw, ch, rej);
+        if (cube_meta_get_str(&r->meta, "RECCHOSE", &chosen) == SL_OK &&
+            cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK)
+            printf("  chosen: %s (predicted 1 - c %.3f)\n", chosen, pred);
     }
 }
 
@@ -63,9 +109,20 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     pipeline_opts_defaults(&o);
     if (a->method && pipeline_method_parse(a->method, &o.method) != SL_OK) {
         fprintf(stderr, "specklab recon: unknown --method '%s' (direct, tsm, "
-                        "tsm-fourier)\n", a->method);
+                        "tsm-fourier, auto)\n", a->method);
         return 2;
     }
+    if (a->skips && pipeline_skips_parse(a->skips, &o.skips) != SL_OK) {
+        fprintf(stderr, "specklab recon: --skips '%s': a list of reject, crop, "
+                        "support, angles, or all, none\n", a->skips);
+        return 2;
+    }
+    if (a->target_error < 0 || a->target_error >= 1) {
+        fprintf(stderr, "specklab recon: --target-error %g: 1 - c in (0, 1)\n",
+                a->target_error);
+        return 2;
+    }
+    o.target_error = a->target_error;
     if (a->window) {
         if (!strcmp(a->window, "none")) o.window = POWSPEC_WIN_NONE;
         else if (!strcmp(a->window, "hann")) o.window = POWSPEC_WIN_HANN;
@@ -123,7 +180,9 @@ int cmd_recon(int argc, char **argv)
                 return cmd_recon_run(argc, argv);
     recon_args a = {0};
     GOptionEntry entries[] = {
-        {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier (default tsm)", "M"},
+        {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier|auto (default tsm)", "M"},
+        {"target-error", 0, 0, G_OPTION_ARG_DOUBLE, &a.target_error, "auto: the 1 - c wanted (default 0.1)", "E"},
+        {"skips", 0, 0, G_OPTION_ARG_STRING, &a.skips, "reject,crop,support,angles|all|none (default: all for auto, none otherwise)", "LIST"},
         {"projections", 'p', 0, G_OPTION_ARG_INT, &a.projections, "TSM projection angles (default 180)", "N"},
         {"r2", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size)", "PX"},
         {"ref", 0, 0, G_OPTION_ARG_FILENAME, &a.ref, "point-source reference sequence (transfer-function calibration)", "FITS"},
@@ -148,7 +207,17 @@ int cmd_recon(int argc, char **argv)
     g_option_context_set_description(ctx,
         "Input: a FITS cube (NAXIS3 = frames), or 2-D frames read as one sequence.\n"
         "Output: a 2-D float32 image, frame-sized, object centred; the plate scale\n"
-        "is carried over from the input header (PLTSCALE).");
+        "is carried over from the input header (PLTSCALE).\n"
+        "\n"
+        "--method auto probes the first 32 frames (speckle cloud, Fourier support,\n"
+        "the image's extent, frame quality, SNR) and runs the cheapest configuration\n"
+        "a model calibrated on `specklab bench` expects to reach --target-error\n"
+        "(1 - c against a perfect, cophased image; recon/autoconf.c).  Skips, also\n"
+        "for the fixed methods with --skips: reject empty, saturated and outlier\n"
+        "frames; reconstruct on a crop holding the speckle cloud; cut TSM at the\n"
+        "measured Fourier support; take TSM's projections from the measured extent.\n"
+        "What was measured and chosen goes into the header (RECSKIPS, RECCROP*,\n"
+        "RECREJ*, RECSUPP, RECEXTNT, RECSNR, RECCHOSE, RECPRED) and into --json.");
     int status = 2;
     if (!cli_parse(ctx, &argc, &argv))
         goto free_ctx;
@@ -160,7 +229,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.stretch);
+    g_free(a.target); g_free(a.window); g_free(a.stretch); g_free(a.skips);
     return status;
 }
 

@@ -70,9 +70,22 @@ static void sim_header(const bench_sim *b, const sim *s, double lod_px,
     }
 }
 
-/* Frames, TRUTH, COPHASED into path; the cophased image stays in buf. */
+/* An injected bad frame: empty (all zero) or saturated (x 20, clipped
+ * at the frame's own peak). */
+static void spoil(float *f, size_t n, int saturated)
+{
+    float mx = 0;
+    for (size_t i = 0; i < n; i++)
+        mx = f[i] > mx ? f[i] : mx;
+    for (size_t i = 0; i < n; i++)
+        f[i] = !saturated ? 0.0f : f[i] * 20 < mx ? f[i] * 20 : mx;
+}
+
+/* Frames, TRUTH, COPHASED into path; the cophased image stays in buf.
+ * bad > 0: frames 5, 15, 25, ... alternately emptied and saturated, bad
+ * of each. */
 static int write_frames(sim *s, const char *path, const cube_meta *md,
-                        float *buf, sl_err *err)
+                        int bad, float *buf, sl_err *err)
 {
     const sim_opts *o = sim_options(s);
     cube_writer *w = NULL;
@@ -82,7 +95,9 @@ static int write_frames(sim *s, const char *path, const cube_meta *md,
     for (int k = 0; k < o->nframes && rc == SL_OK; k++) {
         if ((rc = sim_frame(s, k, buf)) != SL_OK)
             sl_seterr(err, rc, "frame %d: %s", k, sim_errmsg(s));
-        else if ((rc = cube_writer_append(w, buf)) != SL_OK)
+        else if (k % 10 == 5 && k / 10 < 2 * bad)
+            spoil(buf, (size_t)o->width * o->height, (k / 10) % 2);
+        if (rc == SL_OK && (rc = cube_writer_append(w, buf)) != SL_OK)
             sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
     }
     if (rc == SL_OK && (rc = sim_truth(s, buf)) == SL_OK &&
@@ -122,6 +137,8 @@ int bench_sim_write(const bench_sim *b, const char *cube_path,
     if (rc != SL_OK)
         return rc;
     double lod_arcsec = o.wavelength_m / mask_extent_m(m) * RAD_ARCSEC;
+    if (!(o.plate_scale_arcsec > 0) && b->oversample > 1)
+        o.plate_scale_arcsec = lod_arcsec / 2 / b->oversample; /* Nyquist / k */
     double sep_arcsec = b->sep_lod * lod_arcsec;
     if ((rc = scene_named(&sc, b->scene, sep_arcsec, b->pa_deg, b->dm_mag,
                           err)) != SL_OK)
@@ -135,7 +152,10 @@ int bench_sim_write(const bench_sim *b, const char *cube_path,
     }
     cube_meta md;
     sim_header(b, s, lod_arcsec / sim_plate_scale_arcsec(s), sep_arcsec, &md);
-    if ((rc = write_frames(s, cube_path, &md, buf, err)) != SL_OK)
+    if (b->bad_frames > 0)
+        cube_meta_set_num(&md, "SIMBAD", b->bad_frames,
+                          "frames emptied, and as many saturated");
+    if ((rc = write_frames(s, cube_path, &md, b->bad_frames, buf, err)) != SL_OK)
         goto free_sim;
     if (psf_path) {
         seq img = {o.width, o.height, 1, buf};
@@ -191,6 +211,9 @@ typedef struct child_report {
     int status;                       /* SL_OK or the pipeline's code */
     int width, height, nframes, nrun;
     double r2_px, nangles, ntriples;   /* from the result's header */
+    double crop_px, cutoff, rejected, pred;
+    int method_run;
+    char chosen[64];
     double wall_s[BENCH_MAX_REPEAT], cpu_s[BENCH_MAX_REPEAT];
     char msg[SL_ERRMSG_MAX];
 } child_report;
@@ -271,9 +294,21 @@ static void child_main(int fd, const char *cube, const pipeline_opts *o,
         rep->height = r.height;
         rep->nframes = r.nframes;
         rep->r2_px = rep->nangles = rep->ntriples = NAN;
+        rep->crop_px = rep->cutoff = rep->rejected = rep->pred = NAN;
         cube_meta_get_num(&r.meta, "RECR2", &rep->r2_px);
         cube_meta_get_num(&r.meta, "RECNANG", &rep->nangles);
         cube_meta_get_num(&r.meta, "RECNTRI", &rep->ntriples);
+        cube_meta_get_num(&r.meta, "RECCROPW", &rep->crop_px);
+        cube_meta_get_num(&r.meta, "RECCUT", &rep->cutoff);
+        cube_meta_get_num(&r.meta, "RECREJ", &rep->rejected);
+        cube_meta_get_num(&r.meta, "RECPRED", &rep->pred);
+        const char *str = NULL;
+        rep->method_run = -1;
+        if (cube_meta_get_str(&r.meta, "RECMETH", &str) == SL_OK)
+            pipeline_method_parse(str, &rep->method_run);
+        rep->chosen[0] = 0;
+        if (cube_meta_get_str(&r.meta, "RECCHOSE", &str) == SL_OK)
+            snprintf(rep->chosen, sizeof rep->chosen, "%s", str);
     }
     int bad = write_all(fd, rep, sizeof *rep);
     if (!bad && rep->status == SL_OK)
@@ -321,6 +356,8 @@ int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
     memset(t, 0, sizeof *t);
     t->wall_s = t->cpu_s = t->wall_first_s = t->cpu_first_s = NAN;
     t->peak_rss_mb = t->r2_px = t->nangles = t->ntriples = NAN;
+    t->crop_px = t->cutoff_cyc_px = t->rejected = t->pred_error = NAN;
+    t->method_run = -1;
     if (repeat < 1 || repeat > BENCH_MAX_REPEAT || !cube || !o || !img)
         return sl_seterr(err, SL_EINVAL, "bench_measure: bad arguments "
                          "(repeat %d, 1..%d)", repeat, BENCH_MAX_REPEAT);
@@ -376,6 +413,12 @@ int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
         t->r2_px = rep->r2_px;
         t->nangles = rep->nangles;
         t->ntriples = rep->ntriples;
+        t->crop_px = rep->crop_px;
+        t->cutoff_cyc_px = rep->cutoff;
+        t->rejected = rep->rejected;
+        t->pred_error = rep->pred;
+        t->method_run = rep->method_run;
+        snprintf(t->chosen, sizeof t->chosen, "%s", rep->chosen);
     }
     free(rep);
     return rc;

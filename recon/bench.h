@@ -53,6 +53,11 @@ typedef struct bench_sim {
     double r0_m;                /* Fried parameter at 500 nm */
     double wind_mps;
     double saturation_adu;      /* detector clip level (photon frames) */
+    double oversample;          /* > 1: sampled this x finer than Nyquist
+                                 * (when plate_scale_arcsec is 0) */
+    int bad_frames;             /* > 0: that many frames made empty and as
+                                 * many saturated (frames 5, 15, 25, ...
+                                 * alternately), to exercise rejection */
 } bench_sim;
 
 /* The paper's setting: 100 frames of 128^2, 17-hole mask, r0 0.2 m, wind
@@ -60,7 +65,9 @@ typedef struct bench_sim {
  * saturation 1e9 ADU (no clipping unless asked for). */
 void bench_sim_defaults(bench_sim *s);
 
-/* Simulate s into cube_path: the frames, then the TRUTH and COPHASED image
+/* Simulate s into cube_path: the frames (with bad_frames: an empty frame
+ * is all zeros, a saturated one the frame x 20 clipped at its own peak,
+ * a detector driven far past full well), then the TRUTH and COPHASED image
  * extensions, with a header as `specklab sim` writes it (PLTSCALE,
  * WAVELEN, SIMPHOT, SIMGAIN, SIMSEED, SIMR0, SIMWIND, NYQUIST, LODPX and,
  * for a binary, BINSEP, BINSEPPX, BINPA, BINDM).  psf_path (may be NULL)
@@ -95,8 +102,13 @@ typedef struct bench_timing {
     double peak_rss_mb;         /* the child's ru_maxrss */
     int nframes, width, height; /* of the reconstruction */
     /* What the pipeline chose, from its header (NAN when absent):
-     * RECR2, RECNANG, RECNTRI (direct: closure triangles stored). */
+     * RECR2, RECNANG, RECNTRI (direct: closure triangles stored), and
+     * with skips (pipeline.h) RECCROPW, RECCUT, RECREJ, RECPRED and the
+     * method that ran (RECMETH, enum pipeline_method) and RECCHOSE. */
     double r2_px, nangles, ntriples;
+    double crop_px, cutoff_cyc_px, rejected, pred_error;
+    int method_run;             /* -1 when unknown */
+    char chosen[64];            /* "" when nothing was chosen */
 } bench_timing;
 
 /* Run pipeline_run on cube with o, repeat (1..BENCH_MAX_REPEAT) times in

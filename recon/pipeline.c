@@ -11,19 +11,10 @@
 #include "bispec.h"
 #include "powspec.h"
 #include "prep.h"
+#include "pipeline_int.h"
 #include "tsm.h"
 
-typedef int (*add_fn)(void *h, const float *frame);
-
-/* One input sequence being streamed: reader, cleaning, frame buffer. */
-typedef struct stream {
-    cube_reader *rd;
-    prep *pp;
-    float *frame;
-    int w, h, n;
-} stream;
-
-static const char *method_names[] = {"direct", "tsm", "tsm-fourier"};
+static const char *method_names[] = {"direct", "tsm", "tsm-fourier", "auto"};
 
 void pipeline_opts_defaults(pipeline_opts *o)
 {
@@ -33,11 +24,12 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->tukey_alpha = 0.25;
     o->prep = 1;
     o->fftw_measure = 1;
+    o->skips = -1;
 }
 
 int pipeline_method_parse(const char *name, int *method)
 {
-    for (int i = 0; i < 3; i++)
+    for (int i = 0; i < 4; i++)
         if (strcmp(name, method_names[i]) == 0) {
             *method = i;
             return SL_OK;
@@ -47,7 +39,7 @@ int pipeline_method_parse(const char *name, int *method)
 
 const char *pipeline_method_name(int method)
 {
-    return method >= 0 && method < 3 ? method_names[method] : "unknown";
+    return method >= 0 && method < 4 ? method_names[method] : "unknown";
 }
 
 void pipeline_result_clear(pipeline_result *r)
@@ -70,6 +62,9 @@ static void stream_close(stream *s)
     cube_reader_free(s->rd);
     prep_free(s->pp);
     free(s->frame);
+    probe_free(s->pb);
+    free(s->sel);
+    free(s->cache);
     memset(s, 0, sizeof *s);
 }
 
@@ -111,6 +106,8 @@ close_stream:
 static int stream_feed(stream *s, add_fn add, void *h, const char *what,
                        sl_err *err)
 {
+    if (s->pb)
+        return skip_feed(s, add, h, what, err);
     cube_reader_rewind(s->rd);
     int rc, k = 0;
     while ((rc = cube_reader_next(s->rd, s->frame)) == SL_OK) {
@@ -338,6 +335,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     to.nangles = o->nangles > 0 ? o->nangles : 180;
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
     to.threads = o->nthreads > 0 ? o->nthreads : 2;
+    to.cutoff_cyc_px = o->cutoff_cyc_px;
+    to.inverse = (tsm_inverse)o->tsm_inverse;
     to.photons_per_frame = photons;
     to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
     /* Bias (tsm.h): photons known -> photon bias plus the read noise the
@@ -388,6 +387,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         goto free_all;
     }
     cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
+    cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
+                      "[cyc/px] TSM cut-off");
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
     double level = 0;
     tsm_noise_level(t, &level);
@@ -426,7 +427,7 @@ int pipeline_run(const char *const *paths, int npaths,
 {
     double t0 = now_s();
     memset(out, 0, sizeof *out);
-    if (o->method < 0 || o->method > PIPE_TSM_FOURIER)
+    if (o->method < 0 || o->method > PIPE_AUTO)
         return sl_seterr(err, SL_EINVAL, "unknown method %d", o->method);
     stream s, ref;
     stream *refp = NULL;
@@ -448,22 +449,38 @@ int pipeline_run(const char *const *paths, int npaths,
         goto close_ref;
     double photons, g;
     photon_params(o, cube_reader_meta(s.rd), &photons, &g);
+    /* eo: what runs (auto's choice applied); ch: what autoconf chose */
+    pipeline_opts eo = *o;
+    autoconf_choice ch;
+    memset(&ch, 0, sizeof ch);
+    int skips = skip_effective(o);
+    if ((skips || o->method == PIPE_AUTO) &&
+        (rc = skip_apply(&s, refp != NULL, o, skips, &eo, &ch, &photons, err)) != SL_OK)
+        goto close_ref;
     out->image = malloc(sizeof(float) * s.w * s.h);
     if (!out->image) {
         rc = sl_seterr(err, SL_ENOMEM, "out of memory");
         goto close_ref;
     }
-    describe(o, &s, photons, &out->meta);
-    rc = o->method == PIPE_DIRECT
-             ? run_direct(&s, refp, o, photons, g, out->image, &out->meta, err)
-             : run_tsm(&s, refp, o, photons, out->image, &out->meta, err);
+    describe(&eo, &s, photons, &out->meta);
+    rc = eo.method == PIPE_DIRECT
+             ? run_direct(&s, refp, &eo, photons, g, out->image, &out->meta, err)
+             : run_tsm(&s, refp, &eo, photons, out->image, &out->meta, err);
+    if (rc == SL_OK && s.pb)
+        rc = skip_place(&s, &out->image, err);
     if (rc != SL_OK) {
         pipeline_result_clear(out);
         goto close_ref;
     }
+    out->nframes = s.n;
+    if (s.pb) {
+        skip_describe(&s, o, skips, &ch, &out->meta);
+        out->nframes = skip_nkept(&s);
+        cube_meta_set_num(&out->meta, "RECNFRM", out->nframes, "frames reconstructed");
+        s.w = s.fw, s.h = s.fh;
+    }
     out->width = s.w;
     out->height = s.h;
-    out->nframes = s.n;
     out->plate_scale_arcsec = cube_reader_meta(s.rd)->plate_scale_arcsec;
     out->elapsed_s = now_s() - t0;
     cube_meta_set_num(&out->meta, "RECTIME", out->elapsed_s, "[s] reconstruction wall time");

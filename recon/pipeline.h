@@ -13,7 +13,24 @@
  *   tsm          Radon projections (spatial, the paper's way), 1-D
  *                bispectra per angle, filtered back projection;
  *   tsm-fourier  the same with projection spectra taken as radial slices
- *                of each frame's 2-D FFT (no spatial Radon).
+ *                of each frame's 2-D FFT (no spatial Radon);
+ *   auto         a scene probe (probe.h) on the first frames measures the
+ *                speckle cloud, the Fourier support, the image's extent,
+ *                frame quality and SNR, then autoconf.h picks the cheapest
+ *                configuration its calibrated model expects to meet
+ *                target_error (1 - c), with every skip below on.
+ * Skips (issue 6, item 4; PIPE_SKIP_*, each usable with any method): drop
+ * empty/saturated/outlier frames, reconstruct on an FFT-friendly crop
+ * holding the speckle cloud (the result is placed back, centred, in a
+ * frame-sized image), cut TSM's Fourier work at the measured support
+ * radius when that is inside Nyquist, and take TSM's projection count from
+ * the measured extent.  The probed frames are kept in memory and replayed,
+ * so the probe costs no second read; the cropped, kept frames are cached
+ * in memory (up to 128 MB) for the direct method's second pass.  With a
+ * reference sequence there is no crop (the reference's cloud is
+ * elsewhere).  What was measured and chosen goes into the header (RECPRB*,
+ * RECCROP*, RECREJ*, RECSUPP, RECEXTNT, RECSNR, RECSKIPS, RECTGERR,
+ * RECPRED, RECCHOSE).
  * Photon bias: frames known to be photon counts (SIMPHOT/SIMGAIN in the
  * header, or the caller's photons_per_frame / adu_per_photon) get
  * Wirnitzer's unbiased estimators; otherwise the power-spectrum bias is
@@ -27,7 +44,17 @@
 #include "cube.h"
 #include "status.h"
 
-enum pipeline_method { PIPE_DIRECT = 0, PIPE_TSM = 1, PIPE_TSM_FOURIER = 2 };
+enum pipeline_method {
+    PIPE_DIRECT = 0, PIPE_TSM = 1, PIPE_TSM_FOURIER = 2, PIPE_AUTO = 3
+};
+
+enum pipeline_skip {
+    PIPE_SKIP_REJECT = 1,   /* drop empty, saturated and outlier frames */
+    PIPE_SKIP_CROP = 2,     /* reconstruct on a crop of the speckle cloud */
+    PIPE_SKIP_SUPPORT = 4,  /* TSM cut-off at the measured support */
+    PIPE_SKIP_ANGLES = 8,   /* TSM projections from the measured extent */
+    PIPE_SKIP_ALL = 15
+};
 
 typedef struct pipeline_opts {
     int method;               /* enum pipeline_method */
@@ -52,6 +79,13 @@ typedef struct pipeline_opts {
                                * threads; 0 = 2 */
     int refine_iters;         /* least-squares passes after the recursion */
     int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
+    int skips;                /* PIPE_SKIP_* bits; -1 (default): all of them
+                               * for PIPE_AUTO, none for the other methods */
+    double target_error;      /* auto and PIPE_SKIP_ANGLES: the 1 - c wanted
+                               * against the cophased image; 0: 0.1 */
+    int tsm_inverse;          /* TSM_INV_* (tsm.h); 0: FBP */
+    double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
+                               * support with PIPE_SKIP_SUPPORT */
 } pipeline_opts;
 
 typedef struct pipeline_result {
@@ -66,6 +100,10 @@ typedef struct pipeline_result {
 void pipeline_opts_defaults(pipeline_opts *o);
 int pipeline_method_parse(const char *name, int *method);
 const char *pipeline_method_name(int method);
+/* "crop,reject,support,angles", "all" or "none" -> PIPE_SKIP_* bits. */
+int pipeline_skips_parse(const char *list, int *skips);
+/* The bits as that list (buf of n >= 32 chars). */
+void pipeline_skips_name(int skips, char *buf, int n);
 
 /* Reconstruct paths[0..npaths) (a cube, a frame, or a list/glob of frames,
  * as cube_reader_open takes them).  On success out owns the image: free it

@@ -1,0 +1,53 @@
+/* pipeline_int.h - internals shared by pipeline.c (the estimators) and
+ * pipeline_skip.c (the scene probe, frame selection and crop of issue 6
+ * item 4).  Not a public header. */
+#ifndef SL_PIPELINE_INT_H
+#define SL_PIPELINE_INT_H
+
+#include "autoconf.h"
+#include "cube.h"
+#include "pipeline.h"
+#include "prep.h"
+#include "probe.h"
+
+typedef int (*add_fn)(void *h, const float *frame);
+
+/* One input sequence being streamed: reader, cleaning, frame buffer.
+ * With a probe (the skips), frames are selected and cropped: w x h is the
+ * crop, fw x fh the frame (see skip_feed). */
+typedef struct stream {
+    cube_reader *rd;
+    prep *pp;
+    float *frame;
+    int w, h, n;
+    probe *pb;            /* NULL: every frame, whole */
+    int fw, fh;
+    float *sel;           /* one cropped frame */
+    float *cache;         /* the kept crops, when they fit; else NULL */
+    int ncache, ncache_max, passes;
+} stream;
+
+/* The PIPE_SKIP_* bits a run applies (o->skips, or its default). */
+int skip_effective(const pipeline_opts *o);
+/* Probe the first frames of s (read and cleaned once, kept for replay),
+ * then set up selection and crop (s->w x s->h becomes the crop) and, for
+ * PIPE_AUTO or the TSM skips, choose the configuration: eo is o with the
+ * choice applied, ch what autoconf chose.  photons (per frame) is scaled
+ * to the flux inside the crop. */
+int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
+               pipeline_opts *eo, autoconf_choice *ch, double *photons,
+               sl_err *err);
+/* stream_feed for a probed stream: the first pass replays the probed
+ * frames and reads on; later passes come from the cache of kept crops, or
+ * read again (same verdicts).  Rejected frames are never fed. */
+int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
+/* Frames fed per pass (the kept ones). */
+int skip_nkept(const stream *s);
+/* The header keywords of the probe, the skips and the choice. */
+void skip_describe(const stream *s, const pipeline_opts *o, int skips,
+                   const autoconf_choice *ch, cube_meta *m);
+/* A crop-sized image placed, centred, in a new frame-sized one: *img is
+ * replaced (and freed). */
+int skip_place(const stream *s, float **img, sl_err *err);
+
+#endif

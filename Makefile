@@ -1,6 +1,6 @@
 # specklab - hand-written build.  `make` builds everything into bin/ and
 # build/; `make test` installs missing Debian packages, builds and runs every
-# test CI runs.  Other tiers: quick, asan, bench, fuzz, demo.
+# test CI runs.  Other tiers: quick, asan, bench, stress, soak, fuzz, demo.
 #
 # Object files go under $(BUILD) so that `make asan` (BUILD=build-asan) never
 # mixes sanitized and plain objects.
@@ -92,7 +92,7 @@ ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
 
 PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd)
 
-.PHONY: all deps test quick stress asan asan-ci-build valgrind bench fuzz demo clean
+.PHONY: all deps test quick stress soak asan asan-ci-build valgrind bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
 
 $(BUILD)/recon/%.o: recon/%.c
@@ -154,6 +154,17 @@ $(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(DRV_LIB) $(SCH
 	    $(LDFLAGS_ALL) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) -lm
 
+# The soak program (make soak only): the integration fixture plus the
+# catalogue, cfitsio and json-glib; it talks to specklabd over the socket.
+SOAK_SRC := $(wildcard tests/soak/*.c)
+SOAK_BIN := $(BUILD)/soak/soak
+$(SOAK_BIN): $(SOAK_SRC) $(wildcard tests/soak/*.h) tests/integration/daemon_fx.h \
+             tests/integration/daemon_client.h $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $(SOAK_SRC) -o $@ \
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
@@ -209,6 +220,10 @@ bench: all
 # The numerical-stability suite with its slow cases too.
 stress: all
 	@SL_STRESS_FULL=1 tests/run $(TSTR_BIN)
+
+# Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/).
+soak: all $(SOAK_BIN)
+	@$(SOAK_BIN)
 
 # The whole suite under AddressSanitizer + UndefinedBehaviorSanitizer, in a
 # separate build tree.

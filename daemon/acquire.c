@@ -7,7 +7,8 @@
  * one seeing_add (one pass over the pixels) and a 40-byte FRAMES row in
  * memory (4 MB at 100000 frames).  Flushing (header rewrite + fill) and
  * the progress event happen at most every 100 ms; the catalogue's
- * progress (one fsynced commit) at most every second.
+ * progress (one fsynced commit) at most every second, on a helper thread
+ * (see progress_writer: never on the frame loop).
  */
 #define _GNU_SOURCE
 #include "runner_int.h"
@@ -28,6 +29,102 @@
 #define OPEN_RETRY_US 8000000  /* keep trying to get the camera this long */
 #define RETRY_PAUSE_US 500000
 
+/* The catalogue's progress row during acquisition, written by a helper
+ * thread with its own catalogue handle, never by the frame loop.  Why:
+ * each write is a synchronous (fsynced) SQLite commit, and on a busy ext4
+ * disk that fsync also flushes the cube's dirty pages: `make soak`
+ * measured 100-300 ms, longer than the camera's buffer pool lasts (32
+ * buffers = 160 ms at 200 Hz), and the frames that arrived meanwhile were
+ * dropped (underruns, ~0.5 % of a 10000-frame run).  The loop posts its
+ * latest counts (the latest wins); finish() joins the thread before it
+ * writes the final counts, so no stale count can land after them.  The
+ * row is advisory meanwhile (`run` shows it; a restart recounts the
+ * .part), so a failed write is only logged. */
+typedef struct progress_writer {
+    const char *db_path, *uuid;
+    GThread *th;              /* NULL: not running (write inline) */
+    GMutex mu;                /* guards the fields below */
+    GCond cv;
+    int stored, failed, posted, stop;
+    int64_t missing;
+} progress_writer;
+
+static gpointer progress_main(gpointer data)
+{
+    progress_writer *p = data;
+    catalog *cat = NULL;
+    sl_err e = {0};
+    if (catalog_open(&cat, p->db_path, &e) != SL_OK) {
+        g_warning("run %s: no catalogue progress during acquisition: %s", p->uuid, e.msg);
+        cat = NULL;
+    }
+    g_mutex_lock(&p->mu);
+    for (;;) {
+        while (!p->posted && !p->stop)
+            g_cond_wait(&p->cv, &p->mu);
+        if (p->stop)          /* finish() writes the final counts itself */
+            break;
+        int stored = p->stored, failed = p->failed;
+        int64_t missing = p->missing;
+        p->posted = 0;
+        g_mutex_unlock(&p->mu);
+        if (cat && catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK)
+            g_warning("run %s: %s", p->uuid, catalog_errmsg(cat));
+        g_mutex_lock(&p->mu);
+    }
+    g_mutex_unlock(&p->mu);
+    catalog_close(cat);
+    return NULL;
+}
+
+static void progress_start(progress_writer *p, const char *db_path, const char *uuid)
+{
+    memset(p, 0, sizeof *p);
+    p->db_path = db_path;
+    p->uuid = uuid;
+    g_mutex_init(&p->mu);
+    g_cond_init(&p->cv);
+    GError *ge = NULL;
+    p->th = g_thread_try_new("progress", progress_main, p, &ge);
+    if (!p->th) {
+        g_warning("run %s: progress thread: %s (writing progress inline)", uuid, ge->message);
+        g_error_free(ge);
+    }
+}
+
+/* Hand the counts over; without the thread, write them here (cat). */
+static void progress_post(progress_writer *p, catalog *cat, int stored, int failed,
+                          int64_t missing)
+{
+    if (!p->th) {
+        if (catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK)
+            g_warning("run %s: %s", p->uuid, catalog_errmsg(cat));
+        return;
+    }
+    g_mutex_lock(&p->mu);
+    p->stored = stored, p->failed = failed, p->missing = missing, p->posted = 1;
+    g_cond_signal(&p->cv);
+    g_mutex_unlock(&p->mu);
+}
+
+/* Stop and join (a write in progress completes first); idempotent. */
+static void progress_stop(progress_writer *p)
+{
+    if (p->th) {
+        g_mutex_lock(&p->mu);
+        p->stop = 1;
+        g_cond_signal(&p->cv);
+        g_mutex_unlock(&p->mu);
+        g_thread_join(p->th);
+        p->th = NULL;
+    }
+    if (p->db_path) {
+        g_mutex_clear(&p->mu);
+        g_cond_clear(&p->cv);
+        p->db_path = NULL;
+    }
+}
+
 typedef struct acq {
     runner *r;
     const runner_spec *sp;
@@ -42,6 +139,7 @@ typedef struct acq {
     int64_t packets_missing;
     camera_stats base;         /* the handle's counters at the run's start */
     gint64 t_flush;
+    progress_writer pw;        /* the catalogue's progress row */
 } acq;
 
 /* This run's camera counters: the handle's totals carry over from run to
@@ -242,9 +340,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
             camera_stats cs;
             run_stats(a, &cs);
             t_db = now;
-            if (catalog_run_update_progress(r->cat, sp->uuid, a->stored, a->failed,
-                                            (int64_t)cs.missing_packets) != SL_OK)
-                g_warning("run %s: %s", sp->uuid, catalog_errmsg(r->cat));
+            progress_post(&a->pw, r->cat, a->stored, a->failed, (int64_t)cs.missing_packets);
         }
     }
     return ACQ_COMPLETE;
@@ -266,6 +362,7 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
             camera_stop(r->cam);
         run_stats(a, &cs);
     }
+    progress_stop(&a->pw);     /* before the final counts below */
     a->packets_missing = (int64_t)cs.missing_packets;
     if (cube_writer_close(a->w) != SL_OK && end == ACQ_COMPLETE) {
         snprintf(reason, rlen, "closing the cube failed after %d frames: %s", a->stored,
@@ -375,6 +472,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     }
     a.t_flush = g_get_monotonic_time();
     runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
+    progress_start(&a.pw, r->cfg->catalog, sp->uuid);
     end = finish(&a, stream(&a, reason, rlen), reason, rlen);
     seeing_result sr;
     if (end == ACQ_COMPLETE && a.see && seeing_result_get(a.see, &sr) == SL_OK &&

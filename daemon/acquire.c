@@ -42,6 +42,7 @@
  * .part), so a failed write is only logged. */
 typedef struct progress_writer {
     const char *db_path, *uuid;
+    int busy_timeout_ms;      /* the daemon's: a lock is logged, not waited out */
     GThread *th;              /* NULL: not running (write inline) */
     GMutex mu;                /* guards the fields below */
     GCond cv;
@@ -54,7 +55,8 @@ static gpointer progress_main(gpointer data)
     progress_writer *p = data;
     catalog *cat = NULL;
     sl_err e = {0};
-    if (catalog_open(&cat, p->db_path, &e) != SL_OK) {
+    catalog_opts co = {p->busy_timeout_ms};
+    if (catalog_open_opts(&cat, p->db_path, &co, &e) != SL_OK) {
         g_warning("run %s: no catalogue progress during acquisition: %s", p->uuid, e.msg);
         cat = NULL;
     }
@@ -77,10 +79,12 @@ static gpointer progress_main(gpointer data)
     return NULL;
 }
 
-static void progress_start(progress_writer *p, const char *db_path, const char *uuid)
+static void progress_start(progress_writer *p, const char *db_path, int busy_timeout_ms,
+                           const char *uuid)
 {
     memset(p, 0, sizeof *p);
     p->db_path = db_path;
+    p->busy_timeout_ms = busy_timeout_ms;
     p->uuid = uuid;
     g_mutex_init(&p->mu);
     g_cond_init(&p->cv);
@@ -472,7 +476,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     }
     a.t_flush = g_get_monotonic_time();
     runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
-    progress_start(&a.pw, r->cfg->catalog, sp->uuid);
+    progress_start(&a.pw, r->cfg->catalog, r->cfg->catalog_busy_timeout_ms, sp->uuid);
     end = finish(&a, stream(&a, reason, rlen), reason, rlen);
     seeing_result sr;
     if (end == ACQ_COMPLETE && a.see && seeing_result_get(a.see, &sr) == SL_OK &&

@@ -42,6 +42,7 @@
 #include "camera.h"
 #include "cube.h"
 #include "stage_map.h"
+#include "proc_fx.h"
 #include "tcheck.h"
 #include "../../mocks/fake-camera/fakecam.h"
 
@@ -53,234 +54,30 @@
 #define ROI_H 64
 #define NPX ((size_t)ROI_W * ROI_H)
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static void nap_ms(int ms)   /* between polls of a bounded wait */
-{
-    struct timespec ts = {0, ms * 1000000L};
-    nanosleep(&ts, NULL);
-}
-
-/* ---- processes and namespaces ------------------------------------------ */
-
-static void bin_path(char *out, size_t n, const char *name)
-{
-    const char *env = getenv("SL_BIN");
-    char exe[PATH_MAX] = "";
-    ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    exe[len > 0 ? len : 0] = 0;
-    /* BUILD/tests/test_camera -> BUILD/bin (make asan), else ./bin */
-    snprintf(out, n, "%s/bin/%s", dirname(dirname(exe)), name);
-    if (env)
-        snprintf(out, n, "%s/%s", env, name);
-    else if (access(out, X_OK) != 0)
-        snprintf(out, n, "bin/%s", name);
-}
-
-static int write_file(const char *path, const char *text)
-{
-    int fd = open(path, O_WRONLY);
-    if (fd < 0)
-        return -1;
-    ssize_t w = write(fd, text, strlen(text));
-    close(fd);
-    return w == (ssize_t)strlen(text) ? 0 : -1;
-}
-
-static int enter_netns(char *why, size_t n)
-{
-    uid_t uid = getuid();
-    gid_t gid = getgid();
-    if (unshare(CLONE_NEWNET) != 0) {
-        char map[64];
-        if (unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0) {
-            snprintf(why, n, "unshare: %s", strerror(errno));
-            return -1;
-        }
-        write_file("/proc/self/setgroups", "deny");
-        snprintf(map, sizeof map, "0 %d 1", (int)uid);
-        write_file("/proc/self/uid_map", map);
-        snprintf(map, sizeof map, "0 %d 1", (int)gid);
-        write_file("/proc/self/gid_map", map);
-    }
-    struct ifreq ifr = {0};
-    int s = socket(AF_INET, SOCK_DGRAM, 0);
-    snprintf(ifr.ifr_name, sizeof ifr.ifr_name, "lo");
-    int rc = s < 0 || ioctl(s, SIOCGIFFLAGS, &ifr) != 0 ? -1 : 0;
-    ifr.ifr_flags |= IFF_UP | IFF_RUNNING;
-    if (rc == 0 && ioctl(s, SIOCSIFFLAGS, &ifr) != 0)
-        rc = -1;
-    if (s >= 0)
-        close(s);
-    if (rc)
-        snprintf(why, n, "bringing lo up: %s", strerror(errno));
-    return rc;
-}
-
-/* Run body in a child inside a fresh network namespace; its tc comes back
- * through a pipe within limit_s. */
-static void in_netns(tc *t, void (*body)(tc *), int limit_s)
-{
-    int p[2];
-    CHECK(pipe(p) == 0, "pipe: %s", strerror(errno));
-    fflush(stdout);
-    fflush(stderr);
-    pid_t pid = fork();
-    CHECK(pid >= 0, "fork: %s", strerror(errno));
-    if (pid == 0) {
-        tc ct = {0};
-        char why[256];
-        close(p[0]);
-        if (enter_netns(why, sizeof why) != 0)
-            fprintf(stderr, "note: no private network namespace (%s): using this one\n", why);
-        body(&ct);
-        fflush(stdout);
-        ssize_t w = write(p[1], &ct, sizeof ct);
-        exit(w == (ssize_t)sizeof ct ? 0 : 3);
-    }
-    close(p[1]);
-    tc ct;
-    size_t got = 0;
-    double end = now_s() + limit_s;
-    while (got < sizeof ct && now_s() < end) {
-        struct pollfd pf = {p[0], POLLIN, 0};
-        if (poll(&pf, 1, 200) <= 0)
-            continue;
-        ssize_t r = read(p[0], (char *)&ct + got, sizeof ct - got);
-        if (r <= 0)
-            break;
-        got += (size_t)r;
-    }
-    close(p[0]);
-    if (got < sizeof ct)
-        kill(pid, SIGKILL);
-    int st = 0;
-    end = now_s() + 10;
-    while (waitpid(pid, &st, WNOHANG) == 0) {
-        if (now_s() > end)
-            kill(pid, SIGKILL);
-        nap_ms(10);
-    }
-    CHECK(got == sizeof ct, "test child gave no verdict within %d s (%s %d)", limit_s,
-          WIFSIGNALED(st) ? "signal" : "exit", WIFSIGNALED(st) ? WTERMSIG(st) : WEXITSTATUS(st));
-    *t = ct;
-    /* The child exits through exit(), so LeakSanitizer (make asan) checks
-     * it: a leak or a crash at exit fails the test. */
-    if (!t->failed && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
-        t->failed = 1;
-        snprintf(t->msg, sizeof t->msg, "test child %s %d after its verdict (a leak?)",
-                 WIFSIGNALED(st) ? "died of signal" : "exited", WIFSIGNALED(st) ? WTERMSIG(st)
-                                                                     : WEXITSTATUS(st));
-    }
-}
-
-typedef struct proc {
-    pid_t pid;
-    int out;   /* its stdout */
-} proc;
-
-/* Start argv[0] with stdout on a pipe; with quiet, stderr to /dev/null. */
-static int spawn(proc *p, char *const argv[], int quiet)
-{
-    int fd[2];
-    p->pid = -1;
-    p->out = -1;
-    if (pipe(fd) != 0)
-        return -1;
-    fflush(stdout);
-    fflush(stderr);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        prctl(PR_SET_PDEATHSIG, SIGKILL);
-        dup2(fd[1], 1);
-        if (quiet) {
-            int nul = open("/dev/null", O_WRONLY);
-            dup2(nul, 2);
-        }
-        close(fd[0]);
-        close(fd[1]);
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    close(fd[1]);
-    p->pid = pid;
-    p->out = fd[0];
-    return 0;
-}
-
 /* Run to completion (its own timeouts bound it): the exit status. */
 static int run_wait(char *const argv[], int quiet)
 {
-    proc p;
+    fx_proc p;
     int st = 0;
-    if (spawn(&p, argv, quiet) != 0)
+    if (fx_spawn(&p, argv, quiet ? NULL : FX_STDERR, NULL, NULL) != 0)
         return -1;
     waitpid(p.pid, &st, 0);
     close(p.out);
     return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
 }
 
-/* Read stdout until a line starting with READY (copied to line). */
-static int wait_ready(proc *p, char *line, size_t n, double limit_s)
-{
-    size_t len = 0;
-    double end = now_s() + limit_s;
-    while (now_s() < end) {
-        struct pollfd pf = {p->out, POLLIN, 0};
-        if (poll(&pf, 1, 100) <= 0)
-            continue;
-        if (len + 1 >= n || read(p->out, line + len, 1) != 1)
-            return -1;   /* exited before READY */
-        if (line[len] == '\n') {
-            line[len] = 0;
-            if (strncmp(line, "READY", 5) == 0)
-                return 0;
-            len = 0;
-        } else {
-            len++;
-        }
-    }
-    return -1;
-}
-
-static void stop(proc *p, int sig)
-{
-    if (p->pid <= 0)
-        return;
-    kill(p->pid, sig);
-    int st;
-    double end = now_s() + 5;
-    while (waitpid(p->pid, &st, WNOHANG) == 0) {
-        if (now_s() > end) {
-            kill(p->pid, SIGKILL);
-            waitpid(p->pid, &st, 0);
-            break;
-        }
-        nap_ms(10);
-    }
-    close(p->out);
-    p->pid = -1;
-}
-
-static int start_fake(proc *p, const char *extra1, const char *extra2, const char *extra3)
+static int start_fake(fx_proc *p, const char *extra1, const char *extra2, const char *extra3)
 {
     static char bin[PATH_MAX];
-    bin_path(bin, sizeof bin, "specklab-fake-camera");
+    fx_bin(bin, sizeof bin, "specklab-fake-camera");
     char size[32], line[256];
     snprintf(size, sizeof size, "%dx%d", SENSOR_W, SENSOR_H);
     char *argv[] = {bin, "--size", size, "--seed", "11", "--screen-slot", "3", "-q",
                     (char *)extra1, (char *)extra2, (char *)extra3, NULL};
-    if (access(bin, X_OK) != 0 || spawn(p, argv, 0) != 0)
+    if (access(bin, X_OK) != 0 || fx_spawn(p, argv, FX_STDERR, NULL, NULL) != 0)
         return -1;
-    if (wait_ready(p, line, sizeof line, 20) != 0) {
-        stop(p, SIGKILL);
+    if (fx_wait_ready(p, line, sizeof line, 20) != 0) {
+        fx_stop(p, SIGKILL, 5);
         return -1;
     }
     return 0;
@@ -342,7 +139,7 @@ static long truth_diff(truth *tr, uint64_t frame_id, const uint16_t *pix)
  * on it: Mono16, the ROI, fps, started with nbuf buffers; room for nslot
  * frames in pix; tr is the truth of screen slot `screen`. */
 typedef struct session {
-    proc fake;
+    fx_proc fake;
     camera *c;
     truth *tr;
     uint16_t *pix;
@@ -394,7 +191,7 @@ static void session_close(session *s)
         camera_stats_get(s->c, &s->st);
     camera_close(s->c);
     s->c = NULL;
-    stop(&s->fake, SIGTERM);
+    fx_stop(&s->fake, SIGTERM, 5);
     if (s->tr)
         truth_free(s->tr);
     free(s->tr);
@@ -414,10 +211,10 @@ static void body_frames(tc *t)
     int rc = session_open(&s, N, 3, 500, 64, NULL, NULL, NULL), n = 0;
     if (!fr)
         rc = -1, snprintf(s.err, sizeof s.err, "out of memory");
-    double t0 = now_s();
+    double t0 = fx_now();
     for (; rc == 0 && n < N; n++)
         rc = session_pop(&s, 2000, &fr[n], (size_t)n);
-    double wall = now_s() - t0;
+    double wall = fx_now() - t0;
     int good = 0, later_bad = 0, bad_px = 0, gaps = 0, first_good = -1;
     for (int i = 0; rc == 0 && i < N; i++) {
         if (i > 0 && fr[i].frame_id != (fr[i - 1].frame_id == 65535 ? 1 : fr[i - 1].frame_id + 1))
@@ -511,24 +308,24 @@ static void body_kill(tc *t)
     int rc = session_open(&s, 1, 3, 200, 16, NULL, NULL, NULL);
     for (int i = 0; rc == 0 && i < 20; i++)
         rc = session_pop(&s, 2000, &f, 0);
-    stop(&s.fake, SIGKILL);
-    double t_kill = now_s(), t_first = -1, t_lost = -1;
+    fx_stop(&s.fake, SIGKILL, 5);
+    double t_kill = fx_now(), t_first = -1, t_lost = -1;
     char lost_msg[SL_ERRMSG_MAX] = "";
-    while (rc == 0 && t_lost < 0 && now_s() - t_kill < 20) {
+    while (rc == 0 && t_lost < 0 && fx_now() - t_kill < 20) {
         int r = camera_pop(s.c, 500, &(camera_frame){.u16 = s.pix, .capacity_px = NPX});
-        t_first = r != SL_OK && t_first < 0 ? now_s() - t_kill : t_first;
+        t_first = r != SL_OK && t_first < 0 ? fx_now() - t_kill : t_first;
         if (r == CAMERA_ELOST) {
-            t_lost = now_s() - t_kill;
+            t_lost = fx_now() - t_kill;
             snprintf(lost_msg, sizeof lost_msg, "%s", camera_errmsg(s.c));
         }
     }
     int rc2 = -1, good = 0, wrong = 0;
     if (rc == 0 && t_lost >= 0 && start_fake(&s.fake, NULL, NULL, NULL) == 0) {
-        double t0 = now_s();
+        double t0 = fx_now();
         if ((rc2 = camera_reconnect(s.c, 10000)) != SL_OK)
             snprintf(s.err, sizeof s.err, "%s", camera_errmsg(s.c));
         printf("note: kill -9: first error after %.2f s, control lost after %.2f s; "
-               "reconnected in %.2f s\n", t_first, t_lost, now_s() - t0);
+               "reconnected in %.2f s\n", t_first, t_lost, fx_now() - t0);
         for (int i = 0; rc2 == SL_OK && i < 20; i++)
             if ((rc2 = session_pop(&s, 2000, &f, 0)) == SL_OK && f.status == CAMERA_FRAME_SUCCESS)
                 good++, wrong += truth_diff(s.tr, f.frame_id, s.pix) != 0;
@@ -590,9 +387,9 @@ static void body_list_absent(tc *t)
     CHECK(camera_open(&(camera *){NULL}, "nope", "127.0.0.1", &e) == SL_EINVAL &&
           strstr(e.msg, "unknown camera backend"), "unknown backend: %s", e.msg);
     camera *c = NULL;
-    double t0 = now_s();
+    double t0 = fx_now();
     rc = camera_open(&c, "aravis", "127.0.0.1", &e);
-    double dt = now_s() - t0;
+    double dt = fx_now() - t0;
     camera_close(c);
     CHECK(rc == CAMERA_ENODEV, "open with nobody there gave %d (%s)", rc, e.msg);
     CHECK(strstr(e.msg, "camera 127.0.0.1:") && strstr(e.msg, "no reply"), "unclear: %s", e.msg);
@@ -623,20 +420,20 @@ static void body_grab_stock(tc *t)
     int fd = mkstemp(out);
     CHECK(fd >= 0, "mkstemp: %s", strerror(errno));
     close(fd);
-    proc fake;
+    fx_proc fake;
     char *fargv[] = {stock, "-i", "127.0.0.1", NULL};
-    CHECK(spawn(&fake, fargv, 1) == 0, "cannot start %s", stock);
-    double end = now_s() + 10;
-    while (!udp_port_bound(3956) && now_s() < end)
-        nap_ms(10);
-    bin_path(cli, sizeof cli, "specklab");
+    CHECK(fx_spawn(&fake, fargv, NULL, NULL, NULL) == 0, "cannot start %s", stock);
+    double end = fx_now() + 10;
+    while (!udp_port_bound(3956) && fx_now() < end)
+        fx_nap_ms(10);
+    fx_bin(cli, sizeof cli, "specklab");
     char *gargv[] = {cli, "camera", "grab", "--camera", "127.0.0.1", "--frames", "25",
                      "--roi", "0,0,64,48", "--frame-rate-hz", "200", "-o", out, NULL};
     char *help[] = {cli, "camera", "--help", NULL};
     int via_bin = access(cli, X_OK) == 0 && run_wait(help, 1) == 0, status = -1;
     if (via_bin)
         status = run_wait(gargv, 0);
-    stop(&fake, SIGTERM);
+    fx_stop(&fake, SIGTERM, 5);
     CHECK(via_bin, "%s is missing or has no camera command (run make)", cli);
     seq *s = NULL;
     sl_err e = {0};
@@ -691,8 +488,8 @@ static int stage_cmd(modbus_t *m, int wheel, int cmd, int target)
 
 static int stage_settled(modbus_t *m, int screen_slot, double limit_s)
 {
-    double end = now_s() + limit_s;
-    while (now_s() < end) {
+    double end = fx_now() + limit_s;
+    while (fx_now() < end) {
         uint16_t a[STAGE_WHEEL_NREGS], b[STAGE_WHEEL_NREGS];
         if (modbus_read_registers(m, STAGE_REG_WHEEL_BASE(0), STAGE_WHEEL_NREGS, a) ==
                 STAGE_WHEEL_NREGS &&
@@ -701,7 +498,7 @@ static int stage_settled(modbus_t *m, int screen_slot, double limit_s)
             (a[STAGE_WREG_STATUS] & STAGE_ST_INPOS) && (b[STAGE_WREG_STATUS] & STAGE_ST_INPOS) &&
             a[STAGE_WREG_POSITION] == screen_slot)
             return 0;
-        nap_ms(10);
+        fx_nap_ms(10);
     }
     return -1;
 }
@@ -710,8 +507,8 @@ static int stage_settled(modbus_t *m, int screen_slot, double limit_s)
  * fraction above bias is returned in *peak. */
 static int see(camera *c, truth *tr, uint16_t *pix, double *peak)
 {
-    double end = now_s() + 5;
-    while (now_s() < end) {
+    double end = fx_now() + 5;
+    while (fx_now() < end) {
         camera_frame f = {.u16 = pix, .capacity_px = NPX};
         if (camera_pop(c, 1000, &f) != SL_OK || f.status != CAMERA_FRAME_SUCCESS ||
             truth_diff(tr, f.frame_id, pix) != 0)
@@ -734,13 +531,13 @@ static void body_stage(tc *t)
                                         "frames of slot 1", "MOVE screen to 5",
                                         "frames of slot 5", "done"};
     char bin[PATH_MAX], line[256], hp[64];
-    bin_path(bin, sizeof bin, "specklab-fake-stage");
+    fx_bin(bin, sizeof bin, "specklab-fake-stage");
     if (access(bin, X_OK) != 0)
         SKIP("%s not built: the stage-driven seeing is untested", bin);
-    proc stg;
+    fx_proc stg;
     char *sargv[] = {bin, "--port", "0", "--step-ms", "20", NULL};
     int port = 0, step = 0;
-    CHECK(spawn(&stg, sargv, 1) == 0 && wait_ready(&stg, line, sizeof line, 10) == 0 &&
+    CHECK(fx_spawn(&stg, sargv, NULL, NULL, NULL) == 0 && fx_wait_ready(&stg, line, sizeof line, 10) == 0 &&
           sscanf(line, "READY port=%d", &port) == 1, "fake stage did not start");
     snprintf(hp, sizeof hp, "127.0.0.1:%d", port);
     session s;
@@ -764,7 +561,7 @@ static void body_stage(tc *t)
             step = 6;
     }
     session_close(&s);
-    stop(&stg, SIGTERM);
+    fx_stop(&stg, SIGTERM, 5);
     if (m)
         modbus_close(m), modbus_free(m);
     if (fast)
@@ -777,12 +574,12 @@ static void body_stage(tc *t)
           peak_bad);
 }
 
-TEST(frames_match_simulator) { in_netns(t, body_frames, 120); }
-TEST(lost_packets_never_good) { in_netns(t, body_lossy, 60); }
-TEST(kill_and_reconnect) { in_netns(t, body_kill, 90); }
-TEST(list_exposure_absent) { in_netns(t, body_list_absent, 60); }
-TEST(grab_stock_fake_camera) { in_netns(t, body_grab_stock, 60); }
-TEST(stage_changes_seeing) { in_netns(t, body_stage, 60); }
+TEST(frames_match_simulator) { fx_in_netns(t, body_frames, 120); }
+TEST(lost_packets_never_good) { fx_in_netns(t, body_lossy, 60); }
+TEST(kill_and_reconnect) { fx_in_netns(t, body_kill, 90); }
+TEST(list_exposure_absent) { fx_in_netns(t, body_list_absent, 60); }
+TEST(grab_stock_fake_camera) { fx_in_netns(t, body_grab_stock, 60); }
+TEST(stage_changes_seeing) { fx_in_netns(t, body_stage, 60); }
 
 TC_MAIN(TC_CASE(frames_match_simulator), TC_CASE(lost_packets_never_good),
         TC_CASE(kill_and_reconnect), TC_CASE(list_exposure_absent),

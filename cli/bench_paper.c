@@ -100,8 +100,9 @@ static void binary_cell(const bench_score *s, double dm, int have)
 }
 
 /* Columns: the four methods, then metrics_binary on the cophased image
- * itself: what a perfect reconstruction would score (the metric's floor;
- * the 17-hole PSF's sidelobes exceed a dm 2 companion). */
+ * itself: what a perfect reconstruction would score (the metric's floor:
+ * rounding for dm > 0, the interpolated peaks' wing bias at dm 0, where
+ * binary.h's symmetric-PSF fit cannot fix d). */
 static void binaries_table(GArray *rows, int ref)
 {
     static const double seps[] = {5, 10, 15, 20}, dms[] = {0, 1, 2};

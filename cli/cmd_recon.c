@@ -360,6 +360,8 @@ int cmd_binary(int argc, char **argv)
         cli_json_num(jb, "flux_ratio", b.flux_ratio);
         cli_json_num(jb, "sep_arcsec", b.sep_px * ps);
         cli_json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
+        json_builder_set_member_name(jb, "pa_ambiguous");
+        json_builder_add_boolean_value(jb, b.pa_ambiguous);
         json_builder_end_object(jb);
         cli_print_json(jb);
         g_object_unref(jb);
@@ -367,8 +369,9 @@ int cmd_binary(int argc, char **argv)
         printf("sep %.3f +- %.3f px", b.sep_px, b.sep_err_px);
         if (isfinite(ps))
             printf(" (%.4f +- %.4f arcsec)", b.sep_px * ps, b.sep_err_px * ps);
-        printf(", PA %.2f +- %.2f deg, dm %.3f +- %.3f mag\n", b.pa_deg,
-               b.pa_err_deg, b.dm_mag, b.dm_err_mag);
+        printf(", PA %.2f +- %.2f deg%s, dm %.3f +- %.3f mag\n", b.pa_deg,
+               b.pa_err_deg, b.pa_ambiguous ? " (or +180: equal stars)" : "",
+               b.dm_mag, b.dm_err_mag);
     }
     status = 0;
 free_img:

@@ -1,13 +1,12 @@
 /* metrics.c - see metrics.h.
  *
- * Everything sub-pixel here uses one tool: Newton's method on a
- * band-limited function given by its DFT X,
- *   f(s) = (1/wh) Re sum_u X(u) exp(+i k(u).s),
- * (the cross-correlation for registration, the image itself for binary
- * astrometry).  The Fourier series is the exact continuous function behind
- * the samples, so the maximum is found without interpolation bias; one
- * evaluation with gradient and Hessian costs O(wh) using separable
- * exponentials (row sums, then one pass over rows).
+ * Sub-pixel registration uses Newton's method on the band-limited
+ * cross-correlation given by its DFT X,
+ *   f(s) = (1/wh) Re sum_u X(u) exp(+i k(u).s).
+ * The Fourier series is the exact continuous function behind the samples,
+ * so the maximum is found without interpolation bias; one evaluation with
+ * gradient and Hessian costs O(wh) using separable exponentials (row sums,
+ * then one pass over rows).
  */
 #include <complex.h>
 #include <fftw3.h>
@@ -24,7 +23,7 @@ struct metrics_plan {
     fftw_plan fwd;              /* in-place forward on ba (new-array exec) */
     fftw_plan inv;              /* in-place inverse on ba */
     double complex *ex, *ey;    /* separable exponentials, w and h */
-    float *scratch;             /* w*h: median, registered copy */
+    float *scratch;             /* w*h: registered copy */
     sl_err err;
 };
 
@@ -287,168 +286,14 @@ int metrics_corr_registered(const float *a, const float *b, int w, int h,
     return rc;
 }
 
-static int cmp_float(const void *x, const void *y)
-{
-    float a = *(const float *)x, b = *(const float *)y;
-    return (a > b) - (a < b);
-}
-
-/* Median of v[0..n) (reorders v). */
-static double median(float *v, size_t n)
-{
-    qsort(v, n, sizeof *v, cmp_float);
-    return n % 2 ? v[n / 2] : 0.5 * ((double)v[n / 2 - 1] + v[n / 2]);
-}
-
-/* First minimum of the azimuthal profile around pixel (cx, cy): the
- * radius that separates the core from the rest (>= 2 px). */
-static int core_radius(const float *img, int w, int h, int cx, int cy)
-{
-    enum { RMAX = 64 };
-    double sum[RMAX + 2] = {0};
-    int cnt[RMAX + 2] = {0};
-    int rmax = (w < h ? w : h) / 4;
-    if (rmax > RMAX)
-        rmax = RMAX;
-    for (int y = cy - rmax - 1; y <= cy + rmax + 1; y++)
-        for (int x = cx - rmax - 1; x <= cx + rmax + 1; x++) {
-            if (x < 0 || y < 0 || x >= w || y >= h)
-                continue;
-            int r = (int)lround(hypot(x - cx, y - cy));
-            if (r <= rmax + 1) {
-                sum[r] += img[(size_t)y * w + x];
-                cnt[r]++;
-            }
-        }
-    for (int r = 1; r <= rmax; r++) {
-        double here = cnt[r] ? sum[r] / cnt[r] : 0;
-        double next = cnt[r + 1] ? sum[r + 1] / cnt[r + 1] : here;
-        if (next >= here)
-            return r < 2 ? 2 : r;
-    }
-    return rmax < 2 ? 2 : rmax;
-}
-
-/* Position covariance of a peak from white noise sigma: cov = sg2 H^-2,
- * sg2 = sigma^2 pi^2/3 the variance of the interpolant's gradient. */
-static void peak_cov(const double H[3], double sigma, double cov[3])
-{
-    double det = H[0] * H[2] - H[1] * H[1];
-    double sg2 = sigma * sigma * M_PI * M_PI / 3.0;
-    if (det == 0) {
-        cov[0] = cov[1] = cov[2] = INFINITY;
-        return;
-    }
-    double i0 = H[2] / det, i1 = -H[1] / det, i2 = H[0] / det;
-    cov[0] = sg2 * (i0 * i0 + i1 * i1);
-    cov[1] = sg2 * (i0 * i1 + i1 * i2);
-    cov[2] = sg2 * (i1 * i1 + i2 * i2);
-}
-
 int metrics_plan_binary(metrics_plan *p, const float *img, binary_result *out)
 {
-    if (!p || !img || !out)
-        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
-                         "metrics_binary: NULL argument");
-    int w = p->w, h = p->h;
-    size_t n = (size_t)w * (size_t)h;
-    memset(out, 0, sizeof *out);
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(img[i]))
-            return sl_seterr(&p->err, SL_EDATA,
-                             "metrics_binary: pixel %zu is not finite", i);
-    memcpy(p->scratch, img, n * sizeof *img);
-    double bg = median(p->scratch, n);
-    fft_real(p, img, p->ba);
-
-    size_t i1 = 0;
-    for (size_t i = 1; i < n; i++)
-        if (img[i] > img[i1])
-            i1 = i;
-    int cx = (int)(i1 % (size_t)w), cy = (int)(i1 / (size_t)w);
-    int rc = core_radius(img, w, h, cx, cy);
-    long i2 = -1;
-    for (int y = 1; y < h - 1; y++)
-        for (int x = 1; x < w - 1; x++) {
-            float v = img[(size_t)y * w + x];
-            if (hypot(x - cx, y - cy) <= rc || (i2 >= 0 && v <= img[i2]))
-                continue;
-            int ismax = 1;
-            for (int dy = -1; dy <= 1 && ismax; dy++)
-                for (int dx = -1; dx <= 1; dx++)
-                    if (img[(size_t)(y + dy) * w + x + dx] > v) {
-                        ismax = 0;
-                        break;
-                    }
-            if (ismax)
-                i2 = (long)y * w + x;
-        }
-    if (i2 < 0)
-        return sl_seterr(&p->err, SL_EDATA,
-                         "metrics_binary: no second peak beyond %d px", rc);
-    double s1[2] = {cx, cy}, s2[2] = {(double)(i2 % w), (double)(i2 / w)};
-    double H1[3], H2[3];
-    double f1 = bl_peak(p, p->ba, s1, H1) - bg;
-    double f2 = bl_peak(p, p->ba, s2, H2) - bg;
-    if (hypot(s2[0] - s1[0], s2[1] - s1[1]) <= 0.5 * rc || f2 <= 0 || f1 <= 0)
-        return sl_seterr(&p->err, SL_EDATA,
-                         "metrics_binary: second peak merged with the first "
-                         "or not above the background");
-    if (f2 > f1) { /* the interpolated heights decide which is brighter */
-        double t;
-        for (int k = 0; k < 2; k++) {
-            t = s1[k]; s1[k] = s2[k]; s2[k] = t;
-        }
-        for (int k = 0; k < 3; k++) {
-            t = H1[k]; H1[k] = H2[k]; H2[k] = t;
-        }
-        t = f1; f1 = f2; f2 = t;
-    }
-
-    /* Robust noise away from both cores (|v - bg|, MAD -> sigma). */
-    size_t m = 0;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++)
-            if (hypot(x - s1[0], y - s1[1]) > 2 * rc &&
-                hypot(x - s2[0], y - s2[1]) > 2 * rc)
-                p->scratch[m++] = fabsf(img[(size_t)y * w + x] - (float)bg);
-    double sigma = m > 8 ? 1.4826 * median(p->scratch, m) : 0.0;
-
-    out->x1_px = s1[0];
-    out->y1_px = s1[1];
-    out->x2_px = s2[0];
-    out->y2_px = s2[1];
-    out->dx_px = s2[0] - s1[0];
-    out->dy_px = s2[1] - s1[1];
-    out->sep_px = hypot(out->dx_px, out->dy_px);
-    double pa = atan2(-out->dx_px, out->dy_px) * 180.0 / M_PI;
-    out->pa_deg = pa < 0 ? pa + 360.0 : pa;
-    out->flux_ratio = f2 / f1;
-    out->dm_mag = -2.5 * log10(out->flux_ratio);
-    out->background = bg;
-    out->noise = sigma;
-
-    double c1[3], c2[3];
-    peak_cov(H1, sigma, c1);
-    peak_cov(H2, sigma, c2);
-    double cov[3] = {c1[0] + c2[0], c1[1] + c2[1], c1[2] + c2[2]};
-    double ex = out->dx_px / out->sep_px, ey = out->dy_px / out->sep_px;
-    out->sep_err_px = sqrt(ex * ex * cov[0] + 2 * ex * ey * cov[1] +
-                           ey * ey * cov[2]);
-    double tt = ey * ey * cov[0] - 2 * ex * ey * cov[1] + ex * ex * cov[2];
-    out->pa_err_deg = sqrt(tt) / out->sep_px * 180.0 / M_PI;
-    out->flux_ratio_err =
-        out->flux_ratio * sigma * sqrt(1.0 / (f1 * f1) + 1.0 / (f2 * f2));
-    out->dm_err_mag = 2.5 / log(10.0) * out->flux_ratio_err / out->flux_ratio;
-    return SL_OK;
+    if (!p)
+        return SL_EINVAL;
+    return binary_measure(img, p->w, p->h, out, &p->err);
 }
 
 int metrics_binary(const float *img, int w, int h, binary_result *out)
 {
-    metrics_plan *p = metrics_plan_new(w, h, NULL);
-    if (!p)
-        return SL_ENOMEM;
-    int rc = metrics_plan_binary(p, img, out);
-    metrics_plan_free(p);
-    return rc;
+    return binary_measure(img, w, h, out, NULL);
 }

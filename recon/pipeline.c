@@ -68,6 +68,36 @@ static void stream_close(stream *s)
     memset(s, 0, sizeof *s);
 }
 
+int stream_next(stream *s)
+{
+    int rc = cube_reader_next(s->rd, s->frame);
+    if (rc == SL_OK && s->scale != 1.0)
+        for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++)
+            s->frame[i] = (float)(s->frame[i] * s->scale);
+    return rc;
+}
+
+/* The power of two that brings the first frame's peak |pixel| into
+ * [0.5, 1) when it lies outside 2^-24..2^24 (see stream.scale), else 1.
+ * Cost: one extra frame read. */
+static int stream_pick_scale(stream *s)
+{
+    s->scale = 1.0;
+    int rc = cube_reader_next(s->rd, s->frame);
+    if (rc != SL_OK)    /* the reader keeps its message for the caller */
+        return rc == SL_EEND ? SL_OK : rc;
+    cube_reader_rewind(s->rd);
+    double peak = 0;
+    for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++) {
+        double a = fabs((double)s->frame[i]);
+        if (isfinite(a) && a > peak)
+            peak = a;
+    }
+    if (peak > 0 && (peak > 0x1p24 || peak < 0x1p-24))
+        s->scale = ldexp(1.0, -(ilogb(peak) + 1));
+    return SL_OK;
+}
+
 /* Open a sequence for streaming, with frame cleaning as the options say
  * (the estimators apodise themselves, so prep never windows). */
 static int stream_open(stream *s, const char *const *paths, int npaths,
@@ -87,11 +117,15 @@ static int stream_open(stream *s, const char *const *paths, int npaths,
                        s->w, s->h);
         goto close_stream;
     }
+    if ((rc = stream_pick_scale(s)) != SL_OK) {
+        rc = sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+        goto close_stream;
+    }
     if (o->prep) {
         prep_opts po;
         prep_opts_defaults(&po);
         po.window = PREP_WIN_NONE;
-        po.saturation_adu = o->saturation_adu;
+        po.saturation_adu = o->saturation_adu * s->scale;
         if ((rc = prep_new(&s->pp, s->w, s->h, &po, err)) != SL_OK)
             goto close_stream;
     }
@@ -110,7 +144,7 @@ static int stream_feed(stream *s, add_fn add, void *h, const char *what,
         return skip_feed(s, add, h, what, err);
     cube_reader_rewind(s->rd);
     int rc, k = 0;
-    while ((rc = cube_reader_next(s->rd, s->frame)) == SL_OK) {
+    while ((rc = stream_next(s)) == SL_OK) {
         if (s->pp)
             prep_frame(s->pp, s->frame, NULL);
         if (add && (rc = add(h, s->frame)) != SL_OK)
@@ -260,6 +294,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         mod = malloc(n * sizeof *mod);
         double gr = 0, pr = 0;
         photon_params(o, cube_reader_meta(ref->rd), &pr, &gr);
+        gr *= ref->scale;
         rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
                              : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, err);
         if (rc != SL_OK)
@@ -347,7 +382,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     if (photons > 0 && cube_meta_get_num(hm, "SIMRDN", &rn_e) == SL_OK && rn_e > 0) {
         if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
             gain = 1;
-        to.read_noise_adu = rn_e / gain;
+        to.read_noise_adu = rn_e / gain * s->scale;
     }
     tsm *t = NULL, *tr = NULL;
     double *ps_ref = NULL, *ps_tgt = NULL;
@@ -364,7 +399,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
             rn_e > 0) {
             if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
                 gain = 1;
-            ro.read_noise_adu = rn_e / gain;
+            ro.read_noise_adu = rn_e / gain * ref->scale;
         }
         /* the target is a model PSF: noiseless, no bias to remove */
         tsm_opts tt = to;
@@ -449,6 +484,7 @@ int pipeline_run(const char *const *paths, int npaths,
         goto close_ref;
     double photons, g;
     photon_params(o, cube_reader_meta(s.rd), &photons, &g);
+    g *= s.scale;   /* ADU per photon, in the scaled frames' units */
     /* eo: what runs (auto's choice applied); ch: what autoconf chose */
     pipeline_opts eo = *o;
     autoconf_choice ch;
@@ -466,6 +502,12 @@ int pipeline_run(const char *const *paths, int npaths,
     rc = eo.method == PIPE_DIRECT
              ? run_direct(&s, refp, &eo, photons, g, out->image, &out->meta, err)
              : run_tsm(&s, refp, &eo, photons, out->image, &out->meta, err);
+    if (rc == SL_OK && s.scale != 1.0) {
+        for (size_t i = 0, n = (size_t)s.w * s.h; i < n; i++)
+            out->image[i] = (float)(out->image[i] / s.scale);
+        cube_meta_set_num(&out->meta, "RECSCALE", s.scale,
+                          "frames x this (power of 2) for the float sums");
+    }
     if (rc == SL_OK && s.pb)
         rc = skip_place(&s, &out->image, err);
     if (rc != SL_OK) {

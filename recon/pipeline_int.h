@@ -25,7 +25,20 @@ typedef struct stream {
     float *sel;           /* one cropped frame */
     float *cache;         /* the kept crops, when they fit; else NULL */
     int ncache, ncache_max, passes;
+    /* Frames are multiplied by scale on reading (stream_next): a power of
+     * two, 1 unless the first frame's peak lies outside 2^-24..2^24, when
+     * it brings the peak to [0.5, 1).  Why: the bispectra are triple
+     * products in float (|B| ~ peak^3 N^3), so data in other units (pixels
+     * of 1e-40 or 1e28) would underflow or overflow; a power of two is
+     * exact, so the result is the same image, scaled back by 1/scale.
+     * Quantities in ADU (saturation, read noise, ADU per photon) are scaled
+     * with the frames. */
+    double scale;
 } stream;
+
+/* Read the next frame of s into s->frame, scaled; cube_reader_next's
+ * status (SL_EEND at the end). */
+int stream_next(stream *s);
 
 /* The PIPE_SKIP_* bits a run applies (o->skips, or its default). */
 int skip_effective(const pipeline_opts *o);

@@ -85,7 +85,7 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
     cube_reader_rewind(s->rd);
     int rc = SL_OK;
     while (probe_wants(s->pb) > 0 &&
-           (rc = cube_reader_next(s->rd, s->frame)) == SL_OK) {
+           (rc = stream_next(s)) == SL_OK) {
         prep_stats st;
         memset(&st, 0, sizeof st);
         if (s->pp)
@@ -164,7 +164,7 @@ int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
         cube_reader_rewind(s->rd);
     }
     prep_stats st;
-    while ((rc = cube_reader_next(s->rd, s->frame)) == SL_OK) {
+    while ((rc = stream_next(s)) == SL_OK) {
         memset(&st, 0, sizeof st);
         if (s->pp)
             prep_frame(s->pp, s->frame, &st);

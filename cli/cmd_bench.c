@@ -545,7 +545,7 @@ int cmd_bench(int argc, char **argv)
         {"dms", 0, 0, G_OPTION_ARG_STRING, &a.dms, "binary magnitude differences (default 1)", "LIST"},
         {"ref", 0, 0, G_OPTION_ARG_STRING, &a.ref, "reference variants: no, yes or both", "MODE"},
         {"repeat", 0, 0, G_OPTION_ARG_INT, &a.repeat, "runs per point, median reported (default 1; --speed 5)", "N"},
-        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "direct bispectrum / tsm projector threads (default 2)", "N"},
+        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"seed", 0, 0, G_OPTION_ARG_INT64, &a.seed, "simulation seed (reference: seed + 1000)", "N"},
         {"estimate", 0, 0, G_OPTION_ARG_NONE, &a.estimate, "FFTW_ESTIMATE plans instead of FFTW_MEASURE", NULL},
         {"csv", 0, 0, G_OPTION_ARG_FILENAME, &a.csv, "CSV output (default bench.csv; none: skip)", "FILE"},

@@ -194,7 +194,7 @@ int cmd_recon(int argc, char **argv)
         {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation, "repair raw pixels at or above this", "ADU"},
         {"no-prep", 0, 0, G_OPTION_ARG_NONE, &a.no_prep, "do not clean frames (sky, NaN, saturation)", NULL},
         {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn hot/dead pixels from the sequence first", NULL},
-        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "direct bispectrum / tsm projector threads (default 2)", "N"},
+        {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default 0)", "N"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},

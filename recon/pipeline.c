@@ -369,11 +369,11 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     tsm_opts_default(&to);
     to.nangles = o->nangles > 0 ? o->nangles : 180;
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
-    to.threads = o->nthreads > 0 ? o->nthreads : 2;
     to.cutoff_cyc_px = o->cutoff_cyc_px;
     to.inverse = (tsm_inverse)o->tsm_inverse;
     to.photons_per_frame = photons;
     to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
+    to.threads = o->nthreads;   /* 0: online CPUs, at most 4 */
     /* Bias (tsm.h): photons known -> photon bias plus the read noise the
      * simulator records (SIMRDN e-, SIMGAIN e-/adu); unknown (real camera
      * data) -> the floor TSM measures beyond the pupil cut-off. */

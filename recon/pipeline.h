@@ -75,8 +75,8 @@ typedef struct pipeline_opts {
      * band-limited at the cut-off. */
     const char *target_path;
     double wiener;            /* reference regulariser; 0 = default */
-    int nthreads;             /* direct bispectrum / spatial TSM projector
-                               * threads; 0 = 2 */
+    int nthreads;             /* threads: direct bispectrum, 0 = 2; TSM
+                               * (tsm.h), 0 = online CPUs, at most 4 */
     int refine_iters;         /* least-squares passes after the recursion */
     int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
     int skips;                /* PIPE_SKIP_* bits; -1 (default): all of them

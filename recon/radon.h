@@ -30,9 +30,13 @@
  *    oversampled by sigma, then each slice sample is interpolated with a
  *    separable Kaiser-Bessel kernel of width kw bins (a type-2 non-uniform
  *    FFT: the frame is pre-divided by the kernel's transform so the result
- *    is the exact spectrum of the pixel values to 3e-5 (few angles: sigma
- *    1.5, kw 6) or 1e-4..3e-4 (sigma 2, kw 4) of F(0), see test_radon).
- *    Cost: one (sigma*N)^2 FFT plus nangles*nfreq*kw^2 multiply-adds.
+ *    is the exact spectrum of the pixel values to ~1e-5 (few angles: the
+ *    grid g >= 1.25 N of FFTW's fastest sizes, 2^k, 3 2^k or 5 2^k, kw 8)
+ *    or 1e-4..3e-4 (sigma 2, kw 4; up to ~1.5e-3 on speckle frames whose
+ *    light reaches the frame edge) of F(0), see test_radon).
+ *    Cost: one g^2 real FFT (0.09 ms at g = 256, 0.17 ms at 400) plus
+ *    nangles*nfreq*kw^2 complex multiply-adds; each sample's taps are one
+ *    contiguous block of a padded spectrum (radon.c, Forward layout).
  * Two inverses from the same data:
  *  - radon_fbp: filtered back projection in image space: ramp filter (the
  *    Ram-Lak kernel sampled in space, zero-padded to 2*nproj so the
@@ -77,8 +81,12 @@ typedef struct radon_opts {
     int nproj;              /* projection length (even); 0: even >= diagonal */
     int nfreq;              /* slice frequencies j < nfreq; 0: nproj/2 + 1 */
     double oversamp;        /* NUFFT grid oversampling sigma; 0: 2 at
-                             * >= 60 angles, else 1.5 */
-    int kernel_bins;        /* Kaiser-Bessel width kw, 2..8; 0: 4 (6 if sigma<1.9) */
+                             * >= 60 angles, else the smallest grid
+                             * >= 1.25 max(w, h) of the form 2^k, 3 2^k,
+                             * 5 2^k */
+    int kernel_bins;        /* Kaiser-Bessel width kw, 2..8; 0: 4 at sigma
+                             * >= 1.9, else 6; few angles: 8 below sigma
+                             * 1.6, else 6 */
     radon_window window;    /* FBP window (both FBP paths) */
     double window_cut_cyc_px; /* window and ramp cut-off fc; 0: 0.5 (Nyquist) */
     radon_interp bp_interp; /* radon_fbp interpolation */
@@ -109,6 +117,14 @@ double radon_angle_rad(const radon *r, int k);
 int radon_project(radon *r, const float *img, float *proj);
 /* Fourier-slice spectra of img into spec (nangles*nfreq). */
 int radon_slices(radon *r, const float *img, float complex *spec);
+/* The same with the caller's scratch: any number of threads may take
+ * slices with one handle at once, each with its own radon_ws (tables and
+ * FFTW plans are shared read-only; a radon_ws is ~(sigma N)^2 12 bytes).
+ * Results are bit-identical to radon_slices. */
+typedef struct radon_ws radon_ws;
+radon_ws *radon_ws_new(const radon *r, sl_err *err);
+void radon_ws_free(radon_ws *ws);
+int radon_slices_ws(const radon *r, radon_ws *ws, const float *img, float complex *spec);
 
 /* 1-D transforms between projections and their spectra (per angle; phase
  * referred to s = 0).  spec_to_proj drops frequencies j >= nfreq. */

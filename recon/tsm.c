@@ -1,12 +1,15 @@
 /* tsm.c - tomographic speckle masking, see tsm.h.
  *
- * Costs measured on one core, 200^2 frames, nproj 200 (J = 100, 2500 pairs
- * per angle), 100 frames: TSM-180 Fourier ~170 ms (slices 0.5 ms/frame,
- * bispectrum 0.6 ms/frame, tsm_result 50 ms, of which the phase solver
- * ~30 ms); TSM-18 ~39 ms (slices 0.25 ms/frame, the 2-D FFT most of it);
- * the spatial path ~3.5 ms per frame at 180 angles (radon_spatial.h; on
- * `threads` cores), plus ~30 ms in tsm_new for its noise transfer.  Memory at TSM-180: 7 MB of bispectrum sums,
- * 2.3 MB of buffered slices, ~2 MB in the radon handle.
+ * Costs measured on one core (200^2, nproj 200: J = 100, 2500 pairs per
+ * angle, 100 frames, warm FFTW plans): TSM-180 Fourier ~140 ms CPU (2-D
+ * FFTs 17 ms, slice taps 15 ms, bispectrum sums 34 ms, phases 42 ms of a
+ * ~50 ms tsm_result); TSM-18 ~32 ms without reading and prep (FFTs 9 ms,
+ * taps 8 ms, sums 4 ms, tsm_result 5 ms); see tsm.h for the cost model.
+ * The spatial path adds ~3.5 ms per frame at 180 angles (radon_spatial.h;
+ * on `threads` cores), plus ~30 ms in tsm_new for its noise transfer.
+ * Memory at TSM-180: 7 MB of bispectrum sums, 5 MB of blocks (two of 8
+ * frames and their slices), 1.6 MB of FFT scratch per thread, ~2 MB in the
+ * radon handle.
  */
 #include "tsm.h"
 
@@ -15,19 +18,22 @@
 #include <string.h>
 
 #include "rng.h"
+#include "tsm_accum.h"
 
 struct tsm {
-    int w, h, nang, ns, nf, np, batch, nb, nframes;
+    int w, h, nang, ns, nf, np, nframes;
     tsm_opts o;
     radon *rad;
     tsm_phase *ph;
+    tpool *pool;              /* threads: accumulation, phases */
+    tsm_accum *acc;           /* steps (1)-(2) */
     const int *off, *len;     /* pair rows, from ph */
-    float complex *bbuf;      /* batch x nang x nf slice spectra */
     float *proj;              /* nang x ns: spatial projections, results */
-    double *pr, *pi;          /* nf: one spectrum in double */
-    double *bre, *bim;        /* nang x np bispectrum sums */
-    double *ps;               /* nang x nf sum |P|^2 */
-    double *mre, *mim;        /* nang x nf sum P */
+    double *pr;               /* 2 nf: alignment scratch */
+    /* The sums, owned by acc (tsm_accum.h); current after sync_sums(). */
+    const double *bre, *bim;  /* nang x np bispectrum sums */
+    const double *ps;         /* nang x nf sum |P|^2 */
+    const double *mre, *mim;  /* nang x nf sum P */
     double *ref;              /* nang x nf normalised reference power */
     double *tgt;              /* nang x nf normalised target power */
     double wiener;
@@ -54,10 +60,11 @@ void tsm_free(tsm *t)
 {
     if (!t)
         return;
+    tsm_accum_free(t->acc);
+    tpool_free(t->pool);
     radon_free(t->rad);
     tsm_phase_free(t->ph);
-    void *m[] = {t->bbuf, t->proj, t->pr, t->pi, t->bre, t->bim, t->ps,
-                 t->mre, t->mim, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
+    void *m[] = {t->proj, t->pr, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
                  t->tr, t->pw};
     for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)
         free(m[i]);
@@ -66,14 +73,17 @@ void tsm_free(tsm *t)
 
 void tsm_reset(tsm *t)
 {
-    size_t nb = (size_t)t->nang * t->np, ns = (size_t)t->nang * t->nf;
-    memset(t->bre, 0, nb * sizeof *t->bre);
-    memset(t->bim, 0, nb * sizeof *t->bim);
-    memset(t->ps, 0, ns * sizeof *t->ps);
-    memset(t->mre, 0, ns * sizeof *t->mre);
-    memset(t->mim, 0, ns * sizeof *t->mim);
-    t->nb = t->nframes = 0;
+    tsm_accum_reset(t->acc);
+    t->nframes = 0;
     t->have_result = 0;
+}
+
+/* Add the buffered frames; the sums' pointers are fixed, this makes their
+ * contents current. */
+static void sync_sums(tsm *t)
+{
+    const tsm_sums *s = tsm_accum_sums(t->acc);
+    t->bre = s->bre, t->bim = s->bim, t->ps = s->ps, t->mre = s->mre, t->mim = s->mim;
 }
 
 /* The spatial projector's white-noise transfer T(a, u) = E|P(u)|^2 /
@@ -154,16 +164,17 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     int J = (int)floor(cut * ns + 1e-9);
     if (J > ns / 2)
         J = ns / 2;
-    int batch = o.batch ? o.batch : 16;
+    int batch = o.batch ? o.batch : 8;
     if (w < 8 || h < 8 || nang < 1 || J < 3 || o.r2_bins < 0 || batch < 1 ||
-        batch > 1024 || o.variant < TSM_FOURIER || o.variant > TSM_SPATIAL ||
+        batch > 1024 || o.threads < 0 || o.threads > 64 ||
+        o.variant < TSM_FOURIER || o.variant > TSM_SPATIAL ||
         !(o.photons_per_frame >= 0) || !(o.read_noise_adu >= 0) ||
         o.bias < TSM_BIAS_AUTO || o.bias > TSM_BIAS_FLOOR ||
         (o.bias == TSM_BIAS_PHOTON && !(o.photons_per_frame > 0))) {
         sl_seterr(err, SL_EINVAL,
                   "tsm_new: bad parameters (%dx%d, %d angles, cut-off %d bins, "
-                  "r2 %d, batch %d, variant %d, bias %d with %g photons, read "
-                  "noise %g)", w, h, nang, J, o.r2_bins, batch, (int)o.variant,
+                  "r2 %d, batch %d, %d threads, variant %d, bias %d with %g photons, "
+                  "read noise %g)", w, h, nang, J, o.r2_bins, batch, o.threads, (int)o.variant,
                   (int)o.bias, o.photons_per_frame, o.read_noise_adu);
         return NULL;
     }
@@ -173,7 +184,7 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
         return NULL;
     }
     t->w = w, t->h = h, t->nang = nang, t->ns = ns, t->nf = J + 1;
-    t->batch = batch, t->o = o;
+    t->o = o;
     radon_opts ro;
     radon_opts_default(&ro);
     ro.nproj = ns;
@@ -183,7 +194,7 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     ro.window = o.window;
     ro.window_cut_cyc_px = (double)J / ns;
     ro.spatial = o.variant == TSM_SPATIAL;
-    ro.threads = o.threads;
+    ro.threads = o.threads > 0 ? o.threads : tpool_default_threads();
     ro.fftw_flags = o.fftw_flags;
     t->rad = radon_new(w, h, nang, &ro, err);
     if (!t->rad)
@@ -194,16 +205,20 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     t->np = tsm_phase_npairs(t->ph);
     t->off = tsm_phase_rowoff(t->ph);
     t->len = tsm_phase_rowlen(t->ph);
+    if (!(t->pool = tpool_new(o.threads, err)))
+        goto fail_free;
+    if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK) {
+        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
+        goto fail_free;
+    }
+    t->acc = tsm_accum_new(o.variant == TSM_FOURIER ? t->rad : NULL, w, h, nang, t->nf,
+                           t->off, t->len, t->np, batch, t->pool, err);
+    if (!t->acc)
+        goto fail_free;
+    sync_sums(t);
     size_t nb = (size_t)nang * t->np, nsp = (size_t)nang * t->nf;
-    t->bbuf = malloc((size_t)batch * nsp * sizeof *t->bbuf);
     t->proj = malloc((size_t)nang * ns * sizeof *t->proj);
-    t->pr = malloc(2 * t->nf * sizeof *t->pr);   /* also align scratch */
-    t->pi = malloc(t->nf * sizeof *t->pi);
-    t->bre = malloc(nb * sizeof *t->bre);
-    t->bim = malloc(nb * sizeof *t->bim);
-    t->ps = malloc(nsp * sizeof *t->ps);
-    t->mre = malloc(nsp * sizeof *t->mre);
-    t->mim = malloc(nsp * sizeof *t->mim);
+    t->pr = malloc(2 * t->nf * sizeof *t->pr);
     t->ref = malloc(nsp * sizeof *t->ref);
     t->tgt = malloc(nsp * sizeof *t->tgt);
     t->phase = calloc(nsp, sizeof *t->phase);
@@ -211,8 +226,7 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     t->ospec = calloc(nsp, sizeof *t->ospec);
     t->sref = calloc(nsp, sizeof *t->sref);
     t->pw = malloc(nsp * sizeof *t->pw);
-    if (!t->bbuf || !t->proj || !t->pr || !t->pi || !t->bre || !t->bim ||
-        !t->ps || !t->mre || !t->mim || !t->ref || !t->tgt || !t->phase || !t->psc ||
+    if (!t->proj || !t->pr || !t->ref || !t->tgt || !t->phase || !t->psc ||
         !t->ospec || !t->sref || !t->pw) {
         sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (%zu bispectrum elements)", nb);
         goto fail_free;
@@ -227,72 +241,50 @@ fail_free:
     return NULL;
 }
 
-/* Add the buffered frames to the sums, angle by angle so that one angle's
- * bispectrum (np x 16 bytes) stays in cache for the whole block. */
-static void flush(tsm *t)
+/* dst = src (dst may be NULL: scan only); 1 if every pixel is finite.  x * 0
+ * is 0 unless x is NaN or Inf: a branch-free scan on 8 chains, fused with
+ * the copy into the block so the frame is read once (blocks of 8: the
+ * compiler vectorises them). */
+static int copy_finite(float *restrict dst, const float *restrict src, size_t n)
 {
-    int nf = t->nf, J = nf - 1;
-    double *restrict pr = t->pr, *restrict pi = t->pi;
-    for (int a = 0; a < t->nang; a++) {
-        double *ps = t->ps + (size_t)a * nf;
-        double *mre = t->mre + (size_t)a * nf, *mim = t->mim + (size_t)a * nf;
-        double *bre = t->bre + (size_t)a * t->np, *bim = t->bim + (size_t)a * t->np;
-        for (int f = 0; f < t->nb; f++) {
-            const float complex *s = t->bbuf + ((size_t)f * t->nang + a) * nf;
-            for (int j = 0; j < nf; j++) {
-                pr[j] = crealf(s[j]), pi[j] = cimagf(s[j]);
-                ps[j] += pr[j] * pr[j] + pi[j] * pi[j];
-                mre[j] += pr[j], mim[j] += pi[j];
-            }
-            for (int u1 = 1; u1 < J; u1++) {
-                int n = t->len[u1];
-                double ar = pr[u1], ai = pi[u1];
-                double *restrict br = bre + t->off[u1], *restrict bi = bim + t->off[u1];
-                const double *restrict p2r = pr + 1, *restrict p2i = pi + 1;
-                const double *restrict p3r = pr + u1 + 1, *restrict p3i = pi + u1 + 1;
-                for (int k = 0; k < n; k++) {   /* P1 P2 conj(P3) */
-                    double tr = ar * p2r[k] - ai * p2i[k];
-                    double ti = ar * p2i[k] + ai * p2r[k];
-                    br[k] += tr * p3r[k] + ti * p3i[k];
-                    bi[k] += ti * p3r[k] - tr * p3i[k];
-                }
-            }
-        }
-    }
-    t->nb = 0;
+    float z[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8)
+        for (int k = 0; k < 8; k++)
+            z[k] += src[i + k] * 0.0f;
+    for (; i < n; i++)
+        z[0] += src[i] * 0.0f;
+    if (dst)
+        memcpy(dst, src, n * sizeof *src);
+    float s = 0;
+    for (int k = 0; k < 8; k++)
+        s += z[k];
+    return s == 0.0f;
 }
 
 int tsm_add(tsm *t, const float *frame)
 {
-    /* x * 0 is 0 unless x is NaN or Inf: a branch-free scan, 4 chains. */
     size_t npix = (size_t)t->w * t->h, i;
-    float z[4] = {0, 0, 0, 0};
-    for (i = 0; i + 4 <= npix; i += 4)
-        for (int k = 0; k < 4; k++)
-            z[k] += frame[i + k] * 0.0f;
-    for (; i < npix; i++)
-        z[0] += frame[i] * 0.0f;
-    if (z[0] + z[1] + z[2] + z[3] != 0.0f) {
+    int fourier = t->o.variant == TSM_FOURIER;
+    /* Fourier: straight into the accumulator's block, sliced there */
+    if (!copy_finite(fourier ? tsm_accum_frame_slot(t->acc) : NULL, frame, npix)) {
         for (i = 0; i < npix && isfinite(frame[i]); i++)
             ;
         return sl_seterr(&t->err, SL_EDATA, "tsm_add: frame %d pixel (%zu, %zu) is not finite",
                          t->nframes, i % t->w, i / t->w);
     }
-    float complex *spec = t->bbuf + (size_t)t->nb * t->nang * t->nf;
-    int st;
-    if (t->o.variant == TSM_FOURIER)
-        st = radon_slices(t->rad, frame, spec);
+    if (fourier)
+        tsm_accum_commit_frame(t->acc);
     else {
-        st = radon_project(t->rad, frame, t->proj);
+        int st = radon_project(t->rad, frame, t->proj);
         if (st == SL_OK)
-            st = radon_proj_to_spec(t->rad, t->proj, spec);
+            st = radon_proj_to_spec(t->rad, t->proj, tsm_accum_slot(t->acc));
+        if (st != SL_OK)
+            return sl_seterr(&t->err, st, "tsm_add: %s", radon_errmsg(t->rad));
+        tsm_accum_commit(t->acc);
     }
-    if (st != SL_OK)
-        return sl_seterr(&t->err, st, "tsm_add: %s", radon_errmsg(t->rad));
     t->nframes++;
     t->have_result = 0;   /* the spatial path reused t->proj */
-    if (++t->nb == t->batch)
-        flush(t);
     return SL_OK;
 }
 
@@ -338,8 +330,7 @@ int tsm_noise_level(tsm *t, double *level)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_noise_level: no frames");
-    if (t->nb)
-        flush(t);
+    sync_sums(t);
     double sbar, g;
     bias_terms(t, &sbar, &g, level);
     return SL_OK;
@@ -349,8 +340,7 @@ int tsm_power(tsm *t, double *ps)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_power: no frames");
-    if (t->nb)
-        flush(t);
+    sync_sums(t);
     double sbar, g, lv;
     bias_terms(t, &sbar, &g, &lv);
     for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)
@@ -362,8 +352,7 @@ int tsm_mean_projection(tsm *t, float *proj)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_mean_projection: no frames");
-    if (t->nb)
-        flush(t);
+    sync_sums(t);
     for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)   /* sref: scratch */
         t->sref[i] = CMPLXF((float)(t->mre[i] / t->nframes), (float)(t->mim[i] / t->nframes));
     int st = radon_spec_to_proj(t->rad, t->sref, proj);
@@ -377,8 +366,7 @@ int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
         return sl_seterr(&t->err, SL_ERANGE, "tsm_bispectrum: (%d, %d, %d) not stored", k, u1, u2);
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_bispectrum: no frames");
-    if (t->nb)
-        flush(t);
+    sync_sums(t);
     double sbar, g, lv, n = t->nframes;
     bias_terms(t, &sbar, &g, &lv);
     size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1, i = (size_t)k * t->nf;
@@ -455,8 +443,7 @@ int tsm_result(tsm *t, float *img)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_result: no frames added");
-    if (t->nb)
-        flush(t);
+    sync_sums(t);
     int nf = t->nf, J = nf - 1, ns = t->ns, st;
     double sbar, g, lv;
     bias_terms(t, &sbar, &g, &lv);

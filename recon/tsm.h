@@ -11,10 +11,12 @@
  *   (2) per angle, accumulate in double the power |P(u)|^2, the mean
  *       spectrum P(u) and the 1-D bispectrum B(u1,u2) = P(u1) P(u2)
  *       conj(P(u1+u2)) over 1 <= u2 <= u1, u2 <= r2, u1+u2 <= cut-off.
- *       Frames are buffered in blocks of `batch` so that each angle's
- *       bispectrum stays in cache while a block is added (the accumulators
- *       exceed the cache at 180 angles); memory does not depend on the
- *       number of frames, and tsm_add allocates nothing.
+ *       Frames are buffered in blocks of `batch` (tsm_accum.h) so that
+ *       each angle's bispectrum stays in cache while a block is added (the
+ *       accumulators exceed the cache at 180 angles); a full block goes
+ *       to the threads while tsm_add returns and the caller reads the next
+ *       frames; memory does not depend on the number of frames, and
+ *       tsm_add allocates nothing.
  *  tsm_result:
  *   (3) 1-D phases per angle (tsm_phase.c): the bispectrum is first
  *       averaged over the neighbouring angles whose lines pass within
@@ -86,14 +88,41 @@
  * bispectrum holds about J^2/4 pairs per angle (r2 unlimited); at 200^2,
  * 180 angles that is 2500 pairs, 7 MB of accumulators.
  *
- * Not re-entrant: one handle per thread; create handles from one thread
- * (FFTW planner).
+ * Threads (opts.threads; 0: the online CPUs, at most 4): steps (1)-(2)
+ * run on a pool per block (a frame is sliced whole by one thread; each
+ * angle's sums are added by one thread, frames in order), step (3) per
+ * angle (each angle solved whole by one thread).  Nothing is reduced
+ * across threads, so the image is bit-identical for any thread count
+ * and run to run (tests/stress/test_stress_edge.c).
+ *
+ * Cost model, per run of F frames of w x h, K angles, J bins (np ~ J^2/4
+ * pairs per angle), grid g and kernel kw (radon.h: g = 256, kw = 8 for
+ * 200^2 below 60 angles; g = 400, kw = 4 at 60 and more):
+ *   tsm_new     K J 2 kw kernel taps + FFTW plans (from wisdom) + touching
+ *               ~K np 16 bytes of sums: 1 ms at K = 18, 7 ms at K = 180;
+ *   per frame   caller: a finite check and copy (w h); pool: one g x g
+ *               real 2-D FFT (~2.5 g^2 log2 g flops: 0.09 ms at 256,
+ *               0.17 ms at 400) plus K J kw^2 complex taps (0.03 ms at
+ *               18 angles, 0.15 ms at 180), then K (14 np + 6 J) double
+ *               flops of sums (0.035 and 0.34 ms; 4 frames per pass over
+ *               the sums, AVX2 when the CPU has it);
+ *   tsm_result  per angle one (J-1)^3/6 Cholesky and refine_iters steps of
+ *               ~25 np + 2 J^2 flops (~0.2 ms at J = 100), over the pool;
+ *               then K J + one gridding FBP (K J kw^2 + g^2 log g).
+ * Measured end to end (pipeline_run from a FITS cube, 100 frames of 200^2,
+ * 17-hole binary, warm plans; CPU time, one thread / wall with 2 threads,
+ * idle machine): K = 18 34 / 23 ms, K = 180 158 / 98 ms (it was 88 and
+ * 302 ms); of which reading the FITS frames ~5 ms and prep ~5 ms.
+ *
+ * Not re-entrant: one handle per caller thread (it runs its own pool);
+ * create handles from one thread (FFTW planner).
  */
 #ifndef SL_TSM_H
 #define SL_TSM_H
 
 #include "radon.h"
 #include "status.h"
+#include "tpool.h"
 
 typedef enum tsm_variant { TSM_FOURIER = 0, TSM_SPATIAL = 1 } tsm_variant;
 
@@ -146,12 +175,13 @@ typedef struct tsm_opts {
     radon_window window;       /* FBP window */
     tsm_inverse inverse;
     int inv_iters;             /* TSM_INV_ITER iterations; 0: 40 */
-    int batch;                 /* frames per accumulation block; 0: 16 */
+    int batch;                 /* frames per accumulation block; 0: 8 */
+    int threads;               /* 0: online CPUs, at most 4 (tpool.h); also
+                                * the TSM_SPATIAL projector's (radon.h); the
+                                * result is bit-identical for any count */
     double oversamp;           /* Fourier-slice grid; 0: radon default */
     int kernel_bins;           /* Fourier-slice kernel; 0: radon default */
     unsigned fftw_flags;       /* 0: FFTW_MEASURE */
-    int threads;               /* TSM_SPATIAL projector threads (radon.h);
-                                * 0: 1 */
 } tsm_opts;
 
 void tsm_opts_default(tsm_opts *o);   /* all zero = the defaults above */
@@ -212,6 +242,11 @@ typedef struct tsm_phase tsm_phase;
 
 tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err);
 void tsm_phase_free(tsm_phase *p);
+/* Run tsm_phase_inputs and tsm_phase_solve on pool's threads (NULL: the
+ * caller's alone), each thread a contiguous share of the angles with its
+ * own scratch: every angle is computed as by one thread, so the results
+ * do not depend on the count.  The pool is kept by reference.  SL_ENOMEM. */
+int tsm_phase_set_pool(tsm_phase *p, tpool *pool);
 int tsm_phase_npairs(const tsm_phase *p);
 const int *tsm_phase_rowoff(const tsm_phase *p);   /* nfreq entries */
 const int *tsm_phase_rowlen(const tsm_phase *p);   /* nfreq entries */

@@ -33,7 +33,9 @@
  * multiply-adds, then per step one pass over the pairs (~25 flops each),
  * two triangular solves and J sin/cos: at J = 100, 180 angles, 10 steps
  * ~40 ms on one core.  Everything for one angle (pairs, factor) stays in
- * L2 while that angle is solved.
+ * L2 while that angle is solved.  With a pool (tsm_phase_set_pool) each
+ * thread takes a contiguous share of the angles with its own scratch
+ * (phase_ws), for the inputs and the solve alike.
  */
 #include "tsm.h"
 
@@ -41,28 +43,49 @@
 #include <stdlib.h>
 #include <string.h>
 
-struct tsm_phase {
-    int nang, nf, np, n;     /* n = nf - 2 unknowns per angle */
-    int *off, *len;          /* per u1 */
-    int *pu1, *pu2;          /* per pair */
-    float *ph, *wt;          /* caller's inputs */
+#include "tpool.h"
+
+enum { PHASE_MAX_WS = 64 };
+
+/* Scratch of one angle's inputs or solve: one per thread. */
+typedef struct phase_ws {
     double *L;               /* n(n+1)/2: packed Cholesky factor */
     double *er, *ei;         /* nf: phasors of the evaluation point */
     double *x, *y, *g, *g0;  /* nf: iterate, extrapolated point, step,
                               * gradient */
     double *acc;             /* 2 np: one angle's averaged bispectrum */
+} phase_ws;
+
+struct tsm_phase {
+    int nang, nf, np, n;     /* n = nf - 2 unknowns per angle */
+    int *off, *len;          /* per u1 */
+    int *pu1, *pu2;          /* per pair */
+    float *ph, *wt;          /* caller's inputs */
     int *kq;                 /* np: angles averaged each side, per pair */
     int *qs, *nk;            /* pairs by kq descending; counts, scratch */
+    tpool *pool;             /* NULL: one thread */
+    int nws;
+    phase_ws ws[PHASE_MAX_WS];
 };
+
+static void ws_free(phase_ws *w)
+{
+    free(w->L), free(w->er), free(w->ei), free(w->x), free(w->y), free(w->g);
+    free(w->g0), free(w->acc);
+    memset(w, 0, sizeof *w);
+}
+
+static int ws_alloc(const tsm_phase *p, phase_ws *w);
 
 void tsm_phase_free(tsm_phase *p)
 {
     if (!p)
         return;
     free(p->off), free(p->len), free(p->pu1), free(p->pu2);
-    free(p->ph), free(p->wt), free(p->L), free(p->er), free(p->ei);
-    free(p->x), free(p->y), free(p->g), free(p->g0), free(p->acc), free(p->kq);
+    free(p->ph), free(p->wt), free(p->kq);
     free(p->qs), free(p->nk);
+    for (int i = 0; i < p->nws; i++)
+        ws_free(&p->ws[i]);
     free(p);
 }
 
@@ -103,19 +126,12 @@ tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err)
     p->pu2 = malloc((np + 1) * sizeof *p->pu2);
     p->ph = calloc(na * np * 2 + 1, sizeof *p->ph);
     p->wt = calloc(na * np + 1, sizeof *p->wt);
-    p->L = malloc(packed(p->n) * sizeof *p->L);
-    p->er = malloc(nfreq * sizeof *p->er);
-    p->ei = malloc(nfreq * sizeof *p->ei);
-    p->x = malloc(nfreq * sizeof *p->x);
-    p->y = malloc(nfreq * sizeof *p->y);
-    p->g = malloc(nfreq * sizeof *p->g);
-    p->g0 = malloc(nfreq * sizeof *p->g0);
-    p->acc = malloc((2 * np + 1) * sizeof *p->acc);
+    p->nws = 1;
     p->kq = malloc((np + 1) * sizeof *p->kq);
     p->qs = malloc((np + 1) * sizeof *p->qs);
     p->nk = malloc(2 * (na / 8 + 2) * sizeof *p->nk);
-    if (!p->pu1 || !p->pu2 || !p->ph || !p->wt || !p->L || !p->er || !p->ei ||
-        !p->x || !p->y || !p->g || !p->g0 || !p->acc || !p->kq || !p->qs || !p->nk)
+    if (!p->pu1 || !p->pu2 || !p->ph || !p->wt || !p->kq || !p->qs || !p->nk ||
+        ws_alloc(p, &p->ws[0]) != SL_OK)
         goto fail_free;
     for (int u1 = 1; u1 < J; u1++)
         for (int u2 = 1; u2 <= p->len[u1]; u2++) {
@@ -129,13 +145,79 @@ fail_free:
     return NULL;
 }
 
+static int ws_alloc(const tsm_phase *p, phase_ws *w)
+{
+    size_t nf = (size_t)p->nf;
+    w->L = malloc(packed(p->n) * sizeof *w->L);
+    w->er = malloc(nf * sizeof *w->er);
+    w->ei = malloc(nf * sizeof *w->ei);
+    w->x = malloc(nf * sizeof *w->x);
+    w->y = malloc(nf * sizeof *w->y);
+    w->g = malloc(nf * sizeof *w->g);
+    w->g0 = malloc(nf * sizeof *w->g0);
+    w->acc = malloc((2 * (size_t)p->np + 1) * sizeof *w->acc);
+    if (!w->L || !w->er || !w->ei || !w->x || !w->y || !w->g || !w->g0 || !w->acc) {
+        ws_free(w);
+        return SL_ENOMEM;
+    }
+    return SL_OK;
+}
+
+int tsm_phase_set_pool(tsm_phase *p, tpool *pool)
+{
+    int n = pool ? tpool_size(pool) : 1;
+    if (n > PHASE_MAX_WS)
+        return SL_EINVAL;
+    for (; p->nws < n; p->nws++)
+        if (ws_alloc(p, &p->ws[p->nws]) != SL_OK)
+            return SL_ENOMEM;
+    p->pool = pool;
+    return SL_OK;
+}
+
+/* Run job(ctx, tid, n) on the pool, or inline. */
+static void run(const tsm_phase *p, tpool_fn job, void *ctx)
+{
+    if (p->pool)
+        tpool_run(p->pool, job, ctx);
+    else
+        job(ctx, 0, 1);
+}
+
+/* The angles of thread tid of n: a contiguous share, fixed by (tid, n). */
+static void share(int nang, int tid, int n, int *a0, int *a1)
+{
+    *a0 = (int)((long)tid * nang / n);
+    *a1 = (int)((long)(tid + 1) * nang / n);
+}
+
 /* ---- inputs ------------------------------------------------------------ */
+
+typedef struct inputs_job {
+    tsm_phase *p;
+    const double *bre, *bim, *pm, *pb;
+    double n, g, sbar;
+    tsm_weight weight;
+    int kmax;
+    const int *ge;
+} inputs_job;
+
+static void inputs_angle(const inputs_job *j, phase_ws *ws, int a);
+
+static void inputs_run(void *ctx, int tid, int n)
+{
+    inputs_job *j = ctx;
+    int a0, a1;
+    share(j->p->nang, tid, n, &a0, &a1);
+    for (int a = a0; a < a1; a++)
+        inputs_angle(j, &j->p->ws[tid], a);
+}
 
 void tsm_phase_inputs(tsm_phase *p, const double *bre, const double *bim, double nframes,
                       const double *pm, const double *pb, double g, double sbar,
                       tsm_weight weight, double arc_bins)
 {
-    int na = p->nang, nf = p->nf, np = p->np, kmax = na / 8;
+    int na = p->nang, np = p->np, kmax = na / 8;
     double n = nframes;
     /* Angles each side within arc_bins at the pair's largest frequency u3:
      * neighbours are pi u3 / na bins apart there.  Pairs listed by k
@@ -155,42 +237,54 @@ void tsm_phase_inputs(tsm_phase *p, const double *bre, const double *bim, double
     }
     for (int q = 0; q < np; q++)
         p->qs[pos[p->kq[q]]++] = q;
-    for (int a = 0; a < na; a++) {
-        double *acc = p->acc;
-        memset(acc, 0, 2 * (size_t)np * sizeof *acc);
-        for (int m = -kmax; m <= kmax; m++) {
-            /* theta + 180 deg is the same line reversed: B conjugated */
-            int b = a + m, wrap = b < 0 || b >= na;
-            b = b < 0 ? b + na : b >= na ? b - na : b;
-            double sg = wrap ? -1.0 : 1.0;
-            const double *br = bre + (size_t)b * np, *bi = bim + (size_t)b * np;
-            const double *w = g > 0 ? pb + (size_t)b * nf : NULL;
-            for (int i = 0; i < ge[m < 0 ? -m : m]; i++) {
-                int q = p->qs[i], u1 = p->pu1[q], u2 = p->pu2[q];
-                acc[2 * q] += br[q] / n;
-                if (w)
-                    acc[2 * q] += 2 * g * g * sbar - g * (w[u1] + w[u2] + w[u1 + u2]);
-                acc[2 * q + 1] += sg * bi[q] / n;
+    inputs_job j = {p, bre, bim, pm, pb, n, g, sbar, weight, kmax, ge};
+    run(p, inputs_run, &j);
+}
+
+/* Angle a's averaged bispectrum, phasors and weights (per pair: the
+ * angles within its kq each side). */
+static void inputs_angle(const inputs_job *j, phase_ws *ws, int a)
+{
+    const tsm_phase *p = j->p;
+    int na = p->nang, nf = p->nf, np = p->np, kmax = j->kmax;
+    const int *ge = j->ge;
+    const double *bre = j->bre, *bim = j->bim, *pm = j->pm, *pb = j->pb;
+    double n = j->n, g = j->g, sbar = j->sbar;
+    tsm_weight weight = j->weight;
+    double *acc = ws->acc;
+    memset(acc, 0, 2 * (size_t)np * sizeof *acc);
+    for (int m = -kmax; m <= kmax; m++) {
+        /* theta + 180 deg is the same line reversed: B conjugated */
+        int b = a + m, wrap = b < 0 || b >= na;
+        b = b < 0 ? b + na : b >= na ? b - na : b;
+        double sg = wrap ? -1.0 : 1.0;
+        const double *br = bre + (size_t)b * np, *bi = bim + (size_t)b * np;
+        const double *w = g > 0 ? pb + (size_t)b * nf : NULL;
+        for (int i = 0; i < ge[m < 0 ? -m : m]; i++) {
+            int q = p->qs[i], u1 = p->pu1[q], u2 = p->pu2[q];
+            acc[2 * q] += br[q] / n;
+            if (w)
+                acc[2 * q] += 2 * g * g * sbar - g * (w[u1] + w[u2] + w[u1 + u2]);
+            acc[2 * q + 1] += sg * bi[q] / n;
+        }
+    }
+    const double *pa = pm + (size_t)a * nf;
+    float *ph = p->ph + (size_t)a * np * 2, *wt = p->wt + (size_t)a * np;
+    for (int q = 0; q < np; q++) {
+        int u1 = p->pu1[q], u2 = p->pu2[q];
+        double c = 1.0 / (2 * p->kq[q] + 1), xr = acc[2 * q] * c, xi = acc[2 * q + 1] * c;
+        double m = sqrt(xr * xr + xi * xi), d = pa[u1] * pa[u2] * pa[u1 + u2];
+        double w = 0;
+        if (m > 0) {
+            ph[2 * q] = (float)(xr / m), ph[2 * q + 1] = (float)(xi / m);
+            switch (weight) {
+            case TSM_WEIGHT_UNIT: w = 1; break;
+            case TSM_WEIGHT_MODULUS: w = m; break;
+            case TSM_WEIGHT_SNR2: w = d > 0 ? m * m / d : 0; break;
+            default: w = d > 0 ? m / sqrt(d) : 0;
             }
         }
-        const double *pa = pm + (size_t)a * nf;
-        float *ph = p->ph + (size_t)a * np * 2, *wt = p->wt + (size_t)a * np;
-        for (int q = 0; q < np; q++) {
-            int u1 = p->pu1[q], u2 = p->pu2[q];
-            double c = 1.0 / (2 * p->kq[q] + 1), xr = acc[2 * q] * c, xi = acc[2 * q + 1] * c;
-            double m = sqrt(xr * xr + xi * xi), d = pa[u1] * pa[u2] * pa[u1 + u2];
-            double w = 0;
-            if (m > 0) {
-                ph[2 * q] = (float)(xr / m), ph[2 * q + 1] = (float)(xi / m);
-                switch (weight) {
-                case TSM_WEIGHT_UNIT: w = 1; break;
-                case TSM_WEIGHT_MODULUS: w = m; break;
-                case TSM_WEIGHT_SNR2: w = d > 0 ? m * m / d : 0; break;
-                default: w = d > 0 ? m / sqrt(d) : 0;
-                }
-            }
-            wt[q] = (float)w;
-        }
+        wt[q] = (float)w;
     }
 }
 
@@ -242,9 +336,9 @@ static void chol_solve(const double *L, int n, double *b)
 
 /* Recursion: phi(u) = arg sum over u1 + u2 = u of w E(u1) E(u2) conj(b),
  * u upwards from E(0), E(1) (set by the caller). */
-static void recursion(tsm_phase *p, const float *ph, const float *wt)
+static void recursion(const tsm_phase *p, phase_ws *ws, const float *ph, const float *wt)
 {
-    double *er = p->er, *ei = p->ei;
+    double *er = ws->er, *ei = ws->ei;
     for (int u = 2; u < p->nf; u++) {
         double sr = 0, si = 0;
         for (int u1 = (u + 1) / 2; u1 < u; u1++) {
@@ -263,10 +357,10 @@ static void recursion(tsm_phase *p, const float *ph, const float *wt)
 }
 
 /* H = sum w a a^T over the unknowns u = 2..J (row u - 2), then factored. */
-static void closure_factor(tsm_phase *p, const float *wt)
+static void closure_factor(const tsm_phase *p, phase_ws *ws, const float *wt)
 {
     int n = p->n;
-    double *L = p->L, tr = 0;
+    double *L = ws->L, tr = 0;
     memset(L, 0, packed(n) * sizeof *L);
     for (int q = 0; q < p->np; q++) {
         double w = wt[q];
@@ -291,11 +385,11 @@ static void closure_factor(tsm_phase *p, const float *wt)
 }
 
 /* Gradient of f at phases y into g (g[u] for u >= 2 meaningful). */
-static void gradient(tsm_phase *p, const float *ph, const float *wt, const double *y,
-                     double *g)
+static void gradient(const tsm_phase *p, phase_ws *ws, const float *ph, const float *wt,
+                     const double *y, double *g)
 {
     int nf = p->nf;
-    double *er = p->er, *ei = p->ei;
+    double *er = ws->er, *ei = ws->ei;
     for (int u = 2; u < nf; u++)
         er[u] = cos(y[u]), ei[u] = sin(y[u]);
     memset(g, 0, nf * sizeof *g);
@@ -313,28 +407,28 @@ static void gradient(tsm_phase *p, const float *ph, const float *wt, const doubl
     }
 }
 
-static void solve_angle(tsm_phase *p, int a, int iters, double *phase)
+static void solve_angle(const tsm_phase *p, phase_ws *ws, int a, int iters, double *phase)
 {
     int nf = p->nf, n = p->n;
     const float *ph = p->ph + (size_t)a * p->np * 2, *wt = p->wt + (size_t)a * p->np;
-    double *x = p->x, *y = p->y, *g = p->g;
-    p->er[0] = 1, p->ei[0] = 0, p->er[1] = 1, p->ei[1] = 0;
-    recursion(p, ph, wt);
+    double *x = ws->x, *y = ws->y, *g = ws->g;
+    ws->er[0] = 1, ws->ei[0] = 0, ws->er[1] = 1, ws->ei[1] = 0;
+    recursion(p, ws, ph, wt);
     for (int u = 0; u < nf; u++)
-        x[u] = y[u] = atan2(p->ei[u], p->er[u]);
+        x[u] = y[u] = atan2(ws->ei[u], ws->er[u]);
     if (iters > 0)
-        closure_factor(p, wt);
+        closure_factor(p, ws, wt);
     double t = 1;
     for (int it = 0; it < iters; it++) {
-        gradient(p, ph, wt, y, g);
-        memcpy(p->g0, g, nf * sizeof *g);
-        chol_solve(p->L, n, g + 2);
+        gradient(p, ws, ph, wt, y, g);
+        memcpy(ws->g0, g, nf * sizeof *g);
+        chol_solve(ws->L, n, g + 2);
         /* x+ = y - d; momentum (t - 1)/t+ unless it points uphill, i.e.
          * grad f(y).(x+ - x) > 0 (O'Donoghue-Candes gradient restart) */
         double tn = 0.5 * (1 + sqrt(1 + 4 * t * t)), m = (t - 1) / tn, up = 0;
         for (int u = 2; u < nf; u++) {
             double xn = y[u] - g[u];
-            up += p->g0[u] * (xn - x[u]);
+            up += ws->g0[u] * (xn - x[u]);
             y[u] = xn, g[u] = xn - x[u], x[u] = xn;   /* g: the step x+ - x */
         }
         if (up > 0)
@@ -410,9 +504,24 @@ void tsm_phase_shift(float complex *sp, int nf, int ns, double c)
     }
 }
 
+typedef struct solve_job {
+    tsm_phase *p;
+    int iters;
+    double *phase;
+} solve_job;
+
+static void solve_run(void *ctx, int tid, int n)
+{
+    solve_job *j = ctx;
+    int a0, a1;
+    share(j->p->nang, tid, n, &a0, &a1);
+    for (int a = a0; a < a1; a++)
+        solve_angle(j->p, &j->p->ws[tid], a, j->iters, j->phase + (size_t)a * j->p->nf);
+}
+
 int tsm_phase_solve(tsm_phase *p, int iters, double *phase)
 {
-    for (int a = 0; a < p->nang; a++)
-        solve_angle(p, a, iters, phase + (size_t)a * p->nf);
+    solve_job j = {p, iters, phase};
+    run(p, solve_run, &j);
     return SL_OK;
 }

@@ -231,7 +231,7 @@ asan: deps
 	@$(MAKE) --no-print-directory BUILD=build-asan BIN=build-asan/bin \
 	    OPT="-O1 -g -fno-omit-frame-pointer" \
 	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all" all
-	@ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+	@SPECKLABD=build-asan/bin/specklabd ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
 	 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	 tests/run $(patsubst $(BUILD)/%,build-asan/%,$(ALL_TESTS))
 

@@ -46,6 +46,8 @@ struct bispec {
     int n;                   /* frames added */
     double *psum, *xsum;     /* per frequency: sum |F|^2, sum X */
     double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
+    double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
+    double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
     float *win, *in, *in2;
     fftwf_complex *out, *out2;
     fftwf_plan plan, plan2;
@@ -238,12 +240,12 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
                  (o->window == POWSPEC_WIN_TUKEY && o->tukey_alpha >= 0 &&
                   o->tukey_alpha <= 1);
     if (o->weight < PHASOR_WEIGHT_MOD || o->weight > PHASOR_WEIGHT_UNIT ||
-        !(o->adu_per_photon >= 0) || o->refine_iters < 0 ||
+        !(o->adu_per_photon >= 0) || !(o->read_noise_adu >= 0) || o->refine_iters < 0 ||
         !(o->taper_frac >= 0 && o->taper_frac <= 1) || !win_ok)
         return sl_seterr(err, SL_EINVAL, "bispec: bad option (weight %d, "
-                         "gain %g, refine %d, taper %g, window %d)", o->weight,
-                         o->adu_per_photon, o->refine_iters, o->taper_frac,
-                         o->window);
+                         "gain %g, read noise %g, refine %d, taper %g, window %d)",
+                         o->weight, o->adu_per_photon, o->read_noise_adu,
+                         o->refine_iters, o->taper_frac, o->window);
     return SL_OK;
 }
 
@@ -323,10 +325,38 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
         goto fail_nomem;
     if (win)
         powspec_window(o->window, o->tukey_alpha, w, h, b->win);
+    if (ph) { /* white noise of variance s^2: s^2 sum w^2 in |F|^2, s^2 sum w^3 in X */
+        double s2 = o->read_noise_adu * o->read_noise_adu;
+        for (size_t i = 0; i < npx; i++) {
+            double wv = win ? b->win[i] : 1.0;
+            b->rw2 += s2 * wv * wv;
+            b->rw3 += s2 * wv * wv * wv;
+        }
+    }
     unsigned flags = o->measure ? FFTW_MEASURE : FFTW_ESTIMATE;
     b->plan = fftwf_plan_dft_r2c_2d(h, w, b->in, b->out, flags);
     if (b->in2)
         b->plan2 = fftwf_plan_dft_r2c_2d(h, w, b->in2, b->out2, flags);
+    if (b->plan2 && o->read_noise_adu > 0) {
+        /* Windowed read noise N is correlated across frequencies:
+         * E N(u) conj N(v) = rn^2 W2(u - v), W2 = FFT(w^2), so the mean
+         * bispectrum gains rn^2 (S1 conj W2(u1) + S2 conj W2(u2) +
+         * conj(S3 conj W2(u3))), the read-noise twin of Wirnitzer's
+         * terms: folded into X per frame (bispec_add).  Zero without a
+         * window (W2 = 0 off DC). */
+        b->w2ft = balloc(b, 2 * (size_t)nf * sizeof(double));
+        if (!b->w2ft)
+            goto fail_nomem;
+        for (size_t i = 0; i < npx; i++)
+            b->in2[i] = b->win[i] * b->win[i];
+        fftwf_execute(b->plan2);
+        double sc = o->read_noise_adu * o->read_noise_adu / o->adu_per_photon;
+        for (int j = 0; j < nf; j++) {
+            size_t q = (size_t)((b->fq[j] + h) % h) * b->wc + b->fp[j];
+            b->w2ft[2 * j] = sc * crealf(b->out2[q]);
+            b->w2ft[2 * j + 1] = -sc * cimagf(b->out2[q]);
+        }
+    }
     /* The image transform runs once per reconstruction: not worth
      * measuring. */
     b->iplan = fftw_plan_dft_c2r_2d(h, w, b->cin, b->cout, FFTW_ESTIMATE);
@@ -356,7 +386,7 @@ void bispec_free(bispec *b)
                     b->dleg, b->tstart, b->tk,   b->trange, b->accd, b->acc2d,
                     b->accf, b->acc2f, b->fb,    b->psum,  b->xsum, b->phi,
                     b->known, b->work, b->win,   b->in,    b->out,  b->in2,
-                    b->out2, b->cin,   b->cout};
+                    b->out2, b->cin,   b->cout, b->w2ft};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
         free(bufs[i]);
     free(b);
@@ -512,6 +542,11 @@ int bispec_add(bispec *b, const float *frame)
                 double r2 = crealf(b->out2[o]), i2 = cimagf(b->out2[o]);
                 b->xsum[2 * j] += re * r2 + im * i2;
                 b->xsum[2 * j + 1] += im * r2 - re * i2;
+                if (b->w2ft) { /* F (rn^2 / g) conj W2 */
+                    double wr = b->w2ft[2 * j], wi = b->w2ft[2 * j + 1];
+                    b->xsum[2 * j] += re * wr - im * wi;
+                    b->xsum[2 * j + 1] += re * wi + im * wr;
+                }
             } else {
                 b->xsum[2 * j] += p2;
             }
@@ -536,7 +571,7 @@ static void graph_view(const bispec *b, phasor_graph *g)
         .accd = b->accd, .accf = b->accf, .acc2d = b->acc2d,
         .acc2f = b->acc2f, .nframes = n, .weight = b->o.weight,
         .xsum = ph ? b->xsum : NULL, .xscale = ph ? gain / n : 0,
-        .bconst = ph ? 2.0 * gain * gain * b->w3sum / n : 0};
+        .bconst = ph ? 2.0 * gain * gain * b->w3sum / n + 3.0 * gain * b->rw3 : 0};
 }
 
 int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
@@ -596,7 +631,7 @@ int bispec_image(bispec *b, const double *modulus, float *img)
     if (rc != SL_OK)
         return rc;
     int w = b->w, h = b->h;
-    double pbias = b->xsum ? b->o.adu_per_photon * b->w2sum / b->n : 0.0;
+    double pbias = b->xsum ? b->o.adu_per_photon * b->w2sum / b->n + b->rw2 : 0.0;
     double *mod = b->work; /* free once the phases are solved */
     for (int j = 0; j < b->nf; j++)
         mod[j] = modulus ? modulus[fidx(b->fp[j], b->fq[j], w, h)]

@@ -74,6 +74,11 @@ typedef struct bispec_opts {
      * Wirnitzer's bias from B and g * sum(w^2 I) from the power spectrum
      * (exact for any window: the w^2-weighted frame gets its own FFT). */
     double adu_per_photon;
+    /* Gaussian read noise per pixel, ADU rms (with adu_per_photon > 0):
+     * removed from the power spectrum (rn^2 sum w^2) and from the |F|^2
+     * of Wirnitzer's terms (rn^2 sum w^3 in each X), being no photon
+     * bias; it adds nothing to the mean bispectrum itself. */
+    double read_noise_adu;
     int weight;                   /* PHASOR_WEIGHT_*; SNR stores sum |b|^2 */
     int acc_float;                /* complex float accumulators (half memory) */
     int nthreads;                 /* threads for the triple loop, >= 1 */

@@ -51,7 +51,9 @@ typedef struct phasor_graph {
     /* Photon bias (Wirnitzer 1985), NULL xsum = none: the mean B minus
      * xscale * (X(l1) + X(l2) + conj X(j)) plus bconst, with xsum the
      * summed pair term X per frequency as (re, im) pairs; bispec passes
-     * xscale = gain / nframes and bconst = 2 gain^2 <sum w^3 I>. */
+     * xscale = gain / nframes and bconst = 2 gain^2 <sum w^3 I> (plus
+     * 3 gain rn^2 sum w^3: read noise's part of the three X, see
+     * bispec_opts.read_noise_adu). */
     const double *xsum;
     double xscale, bconst;
     int weight;                /* PHASOR_WEIGHT_* */

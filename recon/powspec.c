@@ -24,7 +24,8 @@ struct powspec {
     fftwf_plan plan;
     double *ps;           /* h*wc sum of |F|^2 */
     double complex *ft;   /* h*wc sum of F */
-    double flux, pbias;   /* sums of frame flux and photon bias */
+    double flux, pbias;   /* sums of frame flux and photon (+ read) bias */
+    double rbias;         /* read-noise bias per frame: rn^2 sum w^2 */
     int n;
     sl_err err;
 };
@@ -97,10 +98,12 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
     }
     if (o->bias < POWSPEC_BIAS_NONE || o->bias > POWSPEC_BIAS_FLOOR ||
         (o->bias == POWSPEC_BIAS_PHOTON && !(o->adu_per_photon > 0)) ||
+        !(o->read_noise_adu >= 0) ||
         (o->bias == POWSPEC_BIAS_FLOOR && !(o->floor_rho > 0))) {
         sl_seterr(err, SL_EINVAL,
-                  "powspec: bad bias mode %d (gain %g, floor rho %g)",
-                  o->bias, o->adu_per_photon, o->floor_rho);
+                  "powspec: bad bias mode %d (gain %g, read noise %g, "
+                  "floor rho %g)", o->bias, o->adu_per_photon,
+                  o->read_noise_adu, o->floor_rho);
         return NULL;
     }
     powspec *p = calloc(1, sizeof *p);
@@ -123,6 +126,10 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
             goto fail_alloc;
         powspec_window(o->window, o->tukey_alpha, w, h, p->win);
     }
+    double w2 = 0; /* white noise of variance s^2 adds s^2 sum w^2 */
+    for (size_t i = 0; i < n; i++)
+        w2 += p->win ? (double)p->win[i] * p->win[i] : 1.0;
+    p->rbias = o->read_noise_adu * o->read_noise_adu * w2;
     /* MEASURE overwrites the buffers while planning: nothing is in them. */
     p->plan = fftwf_plan_dft_r2c_2d(h, w, p->in, p->out,
                                     o->measure ? FFTW_MEASURE : FFTW_ESTIMATE);
@@ -180,7 +187,7 @@ int powspec_add(powspec *p, const float *frame)
         p->ft[k] += re + I * im;
     }
     p->flux += flux;
-    p->pbias += p->o.adu_per_photon * w2flux;
+    p->pbias += p->o.adu_per_photon * w2flux + p->rbias;
     p->n++;
     return SL_OK;
 }

@@ -24,7 +24,8 @@ enum {
     /* Frames are photon counts times a gain: frame ADU = g * counts with
      * g = adu_per_photon.  Poisson noise adds to |FFT(w I)|^2 a flat
      * g * sum_x w(x)^2 I(x) per frame (= N photons when g = 1 and no
-     * window); it is computed from each frame and subtracted. */
+     * window); it is computed from each frame and subtracted, and so is
+     * the read noise's flat rn^2 sum_x w(x)^2 (rn = read_noise_adu). */
     POWSPEC_BIAS_PHOTON = 1,
     /* Estimated: the mean of the mean power spectrum over rho > floor_rho
      * (white noise of any origin: photons, read noise), subtracted. */
@@ -36,6 +37,8 @@ typedef struct powspec_opts {
     double tukey_alpha;    /* tapered fraction for TUKEY (0 none, 1 Hann) */
     int bias;              /* POWSPEC_BIAS_* */
     double adu_per_photon; /* gain g for POWSPEC_BIAS_PHOTON (> 0) */
+    double read_noise_adu; /* Gaussian read noise per pixel, ADU rms
+                            * (POWSPEC_BIAS_PHOTON; >= 0, default 0) */
     double floor_rho;      /* floor region rho > floor_rho (default 1.0) */
     int measure;           /* 1: FFTW_MEASURE (default), 0: ESTIMATE */
 } powspec_opts;

@@ -439,6 +439,31 @@ static void neighbour_sum(const tsm *t, int a, int nbr, float complex *out)
     }
 }
 
+/* What the modulus is divided by on the spatial path, at angle a, h[j]
+ * for j < nf (1 on the Fourier path).  The bilinear rays sample the
+ * image's bilinear interpolant (transfer sinc^2(u) sinc^2(v)) along a unit
+ * lattice, so a slice is damped by H = sinc^2(rho cos) sinc^2(rho sin)
+ * (down to 0.41 at rho = 1/2) plus aliases; the object's, a reference's
+ * and a target's power all carry it.  H is divided out up to j_K =
+ * nangles / pi, where neighbouring slices lie within one bin of each
+ * other (arc pi j / nangles), and held at H(j_K) beyond: there the FBP's
+ * angular undersampling streaks grow with the high frequencies, and the
+ * damping acts as their window.  Measured, 200^2 bench six-star, 100
+ * frames, seeds 1-3, c without / with a reference: 180 angles, damped
+ * 0.935 / 0.978, all divided 0.953 / 0.978, up to j_K 0.951 / 0.980; 90
+ * angles 0.897 / 0.909, 0.870 / 0.853, 0.899 / 0.904; 18 angles 0.626 /
+ * 0.539, 0.531 / 0.461, 0.625 / 0.539. */
+static void signal_transfer(const tsm *t, int a, double *h)
+{
+    double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
+    double jk = t->nang / M_PI;
+    for (int j = 0; j < t->nf; j++) {
+        double r = M_PI * (j < jk ? j : jk) / t->ns, x = r * co, y = r * si;
+        double sx = fabs(x) > 1e-12 ? sin(x) / x : 1.0, sy = fabs(y) > 1e-12 ? sin(y) / y : 1.0;
+        h[j] = t->o.variant == TSM_SPATIAL ? sx * sx * sy * sy : 1.0;
+    }
+}
+
 int tsm_result(tsm *t, float *img)
 {
     if (t->nframes == 0)
@@ -471,11 +496,13 @@ int tsm_result(tsm *t, float *img)
     for (int a = 0; a < t->nang; a++) {
         const double *pc = t->psc + (size_t)a * nf, *rf = t->ref + (size_t)a * nf;
         const double *tg = t->tgt + (size_t)a * nf;
+        double *undamp = t->pr;
+        signal_transfer(t, a, undamp);
         for (int j = 0; j < nf; j++) {
             double m2 = pc[j];
             if (t->has_ref && pc[0] > 0)
                 m2 = pc[j] * rf[j] / (rf[j] * rf[j] + t->wiener) * fmax(tg[j], 0);
-            double m = m2 > 0 ? sqrt(m2) : 0, x = (double)j / J;
+            double m = m2 > 0 ? sqrt(m2) / undamp[j] : 0, x = (double)j / J;
             if (t->o.apod == TSM_APOD_HANN)
                 m *= 0.5 * (1 + cos(M_PI * x));
             else if (t->o.apod == TSM_APOD_COSINE)
@@ -509,10 +536,17 @@ int tsm_result(tsm *t, float *img)
                             tsm_phase_align(t->ospec + (size_t)a * nf, t->sref + (size_t)a * nf,
                                             nf, ns, 3.0, t->pr));
     }
+    int riters = t->o.reproj_iters < 0 ? 0 : t->o.reproj_iters ? t->o.reproj_iters : 3;
+    /* t->proj is free until the final projections: the rounds' shifts */
+    if (riters > 0 &&
+        (st = tsm_phase_reproj(t->rad, t->ospec, nf, (size_t)t->w * t->h, riters,
+                               t->o.reproj_frac > 0 ? t->o.reproj_frac : 0.2, img, t->sref,
+                               t->proj, t->pr)) != SL_OK)
+        goto fail_radon;
     /* That may move the object as a whole: put its centroid back at the
      * centre with one 2-D shift, the least-squares fit cx cos + cy sin of
      * the per-angle centroids (consistent across angles by construction). */
-    if (nbr > 0) {
+    if (nbr > 0 || riters > 0) {
         if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
             goto fail_radon;
         double cx = 0, cy = 0, sxx = 0, sxy = 0, syy = 0, bx = 0, by = 0;

@@ -1,5 +1,6 @@
 /* tsm_phase.c - the 1-D phases of TSM (see tsm.h): recovery from the
- * bispectrum, and the per-angle shift (centroid, alignment) of step 5.
+ * bispectrum, and the per-angle shift (centroid, alignment, alignment to
+ * the reprojected image) of step 5.
  *
  * The problem.  Per angle the unknowns are phi(2..J); every stored pair
  * q = (u1, u2) gives a closure residual r = beta - phi(u1) - phi(u2) +
@@ -517,6 +518,65 @@ static void solve_run(void *ctx, int tid, int n)
     share(j->p->nang, tid, n, &a0, &a1);
     for (int a = a0; a < a1; a++)
         solve_angle(j->p, &j->p->ws[tid], a, j->iters, j->phase + (size_t)a * j->p->nf);
+}
+
+/* Step 5's global alignment (tsm.h).  Why: the shift error left by the
+ * centroids and the neighbour alignment varies slowly with angle
+ * (harmonics 3, 5, 7 of theta, ~0.2 px), which neighbours share and so
+ * cannot see; the template is one 2-D image, so its slices are
+ * consistent by construction, and the threshold (the nonlinearity) drops
+ * the smeared halo that inconsistent shifts leave, which a linear
+ * reprojection would hand back unchanged.  Measured against the oracle
+ * shifts (each angle's best fit to the true slice), 200^2 bench six-star,
+ * 100 frames, 180 angles, reference, seed 1: residual 0.21 -> 0.09 px rms,
+ * c 0.960 -> 0.985 (0.986 with the oracle shifts).  The threshold: c on
+ * seeds 1-4 at 0.1 / 0.2 / 0.3 / 0.5 of the peak 0.979 / 0.984 / 0.983 /
+ * 0.980; 0 (positivity alone) makes it worse (0.960 -> 0.954 on seed 1),
+ * since the template then hands each slice back to itself.  The rounds
+ * are kept only if they lower the FBP's negative energy (sum of squares
+ * of the negative pixels over all), the artefacts inconsistent shifts
+ * leave: on an extended object (nothing negative) the template's
+ * threshold would otherwise bias the shifts (c high-passed 0.907 -> 0.902
+ * with a reference).  Cost per round: one FBP, one slicing, nang alignments
+ * (~4 ms at 200^2, 180 angles), plus one FBP. */
+int tsm_phase_reproj(radon *rad, float complex *spec, int nf, size_t npix, int iters,
+                     double frac, float *img, float complex *tmpl, float *dsum, double *scr)
+{
+    int nang = radon_nangles(rad), ns = radon_nproj(rad), st;
+    double neg0 = 0;
+    for (int a = 0; a < nang; a++)
+        dsum[a] = 0;
+    for (int it = 0;; it++) {
+        if ((st = radon_fbp_slices(rad, spec, img)) != SL_OK)
+            return st;
+        float mx = 0;
+        double sneg = 0, sall = 0;
+        for (size_t i = 0; i < npix; i++) {
+            double v = img[i];
+            mx = img[i] > mx ? img[i] : mx;
+            sall += v * v, sneg += v < 0 ? v * v : 0;
+        }
+        double neg = sall > 0 ? sneg / sall : 0;
+        if (it == 0)
+            neg0 = neg;
+        if (it == iters || !(mx > 0)) {
+            if (it > 0 && !(neg < neg0))   /* no more consistent: undo all */
+                for (int a = 0; a < nang; a++)
+                    tsm_phase_shift(spec + (size_t)a * nf, nf, ns, -dsum[a]);
+            return SL_OK;
+        }
+        float thr = (float)(frac * mx);
+        for (size_t i = 0; i < npix; i++)
+            img[i] = img[i] > thr ? img[i] - thr : 0.0f;
+        if ((st = radon_slices(rad, img, tmpl)) != SL_OK)
+            return st;
+        for (int a = 0; a < nang; a++) {
+            float complex *o = spec + (size_t)a * nf;
+            double d = tsm_phase_align(o, tmpl + (size_t)a * nf, nf, ns, 3.0, scr);
+            tsm_phase_shift(o, nf, ns, d);
+            dsum[a] += (float)d;
+        }
+    }
 }
 
 int tsm_phase_solve(tsm_phase *p, int iters, double *phase)

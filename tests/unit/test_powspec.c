@@ -243,6 +243,74 @@ TEST(photon_bias_removed)
     CHECK(rcut <= n / 2.0 + 1 && rcut > n / 8.0, "rcut %g", rcut);
 }
 
+/* Poisson frames plus Gaussian read noise (rn = 6 ADU, gain 2.5, ~2000
+ * photons/frame: the read noise's flat rn^2 sum w^2 is ~0.5x the photon
+ * bias), Tukey window: with read_noise_adu the corrected power beyond the
+ * pupil cut-off averages to zero within its standard error; without it
+ * that mean sits at rn^2 sum w^2, many standard errors away, which is the
+ * level the read noise would leave in the modulus. */
+TEST(read_noise_bias_removed)
+{
+    int n = 64, nfr = 40;
+    double gain = 2.5, flux = 2000 * gain, rn = 6.0;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 17, 0);
+    double x[2] = {30.2, 36.0}, y[2] = {31.7, 29.0}, f[2] = {1, 0.6};
+    float *fr = malloc(n * n * sizeof *fr), *win = malloc(n * n * sizeof *win);
+    double *ps = malloc(n * n * sizeof *ps), *p0 = malloc(n * n * sizeof *p0);
+    powspec_opts o;
+    powspec_opts_default(&o);
+    o.bias = POWSPEC_BIAS_PHOTON;
+    o.adu_per_photon = gain;
+    o.window = POWSPEC_WIN_TUKEY;
+    o.measure = 0;
+    powspec *q = powspec_new(n, n, &o, NULL);   /* photon bias only */
+    o.read_noise_adu = rn;
+    powspec *p = powspec_new(n, n, &o, NULL);
+    o.read_noise_adu = -1;
+    powspec *bad = powspec_new(n, n, &o, NULL);
+    for (int k = 0; k < nfr; k++) {
+        gen_frame(&g, &r, 2.5, 2, x, y, f, flux, gain, 1, fr);
+        for (int i = 0; i < n * n; i++)
+            fr[i] += (float)(rn * rng_normal(&r));
+        powspec_add(p, fr);
+        powspec_add(q, fr);
+    }
+    int rc = powspec_result(p, ps) | powspec_result(q, p0);
+    powspec_window(POWSPEC_WIN_TUKEY, o.tukey_alpha, n, n, win);
+    double w2 = 0;
+    for (int i = 0; i < n * n; i++)
+        w2 += (double)win[i] * win[i];
+    double want = rn * rn * w2, dbias = powspec_bias(p) - powspec_bias(q);
+    double s = 0, s2 = 0, s0 = 0;
+    int m = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++)
+            if (hypot(sf(i, n), sf(j, n)) > n / 2.0 + 1) {
+                double v = ps[j * n + i];
+                s += v, s2 += v * v, s0 += p0[j * n + i];
+                m++;
+            }
+    double mean = s / m, se = sqrt((s2 / m - mean * mean) / m), mean0 = s0 / m;
+    double bias = powspec_bias(p);
+    powspec_free(p);
+    powspec_free(q);
+    gen_done(&g);
+    free(fr);
+    free(win);
+    free(ps);
+    free(p0);
+    CHECK(rc == SL_OK && bad == NULL, "status %d, negative read noise accepted: %d", rc,
+          bad != NULL);
+    CHECK_NEAR(dbias, want, 1e-9 * want);
+    CHECK(fabs(mean) < 4 * se + 1e-3 * bias,
+          "corrected floor mean %g, se %g (read-noise bias %g)", mean, se, want);
+    CHECK(fabs(mean0 - want) < 4 * se + 1e-3 * bias && want > 20 * se,
+          "without read noise the floor sits at %g, want %g (se %g)", mean0, want, se);
+}
+
 /* With a point-source reference the speckle transfer function divides
  * out: the binary's normalised modulus |cos| pattern is recovered far
  * better than by sqrt(PS) alone. */
@@ -300,4 +368,4 @@ TEST(reference_division)
 
 TC_MAIN(TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant),
         TC_CASE(window_shapes), TC_CASE(photon_bias_removed),
-        TC_CASE(reference_division))
+        TC_CASE(read_noise_bias_removed), TC_CASE(reference_division))

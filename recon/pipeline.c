@@ -191,16 +191,18 @@ static void photon_params(const pipeline_opts *o, const cube_meta *m,
         *g = 0;
 }
 
-/* Read noise in ADU rms for photon-count frames: the simulator's SIMRDN
- * (e-) over SIMGAIN (e-/adu); 0 when unknown or photons are not. */
-static double header_read_noise_adu(const cube_meta *m, double photons)
+/* Read noise per pixel for photon-count frames of s, in the units of its
+ * (scaled) frames: the simulator's SIMRDN (e-) over SIMGAIN (e-/adu) times
+ * s->scale; 0 when unknown or when the frames are not photon counts. */
+static double stream_read_noise_adu(const stream *s, double photons)
 {
+    const cube_meta *m = cube_reader_meta(s->rd);
     double rn_e = 0, gain = 1;
     if (!(photons > 0) || cube_meta_get_num(m, "SIMRDN", &rn_e) != SL_OK || !(rn_e > 0))
         return 0;
     if (cube_meta_get_num(m, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
         gain = 1;
-    return rn_e / gain;
+    return rn_e / gain * s->scale;
 }
 
 /* The power spectrum of a whole sequence (pass 1 of direct, and the
@@ -218,7 +220,7 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
     po.bias = g > 0 ? POWSPEC_BIAS_PHOTON : POWSPEC_BIAS_FLOOR;
     po.adu_per_photon = g;
     if (g > 0)
-        po.read_noise_adu = header_read_noise_adu(cube_reader_meta(s->rd), photons) * s->scale;
+        po.read_noise_adu = stream_read_noise_adu(s, photons);
     powspec *p = powspec_new(s->w, s->h, &po, err);
     if (!p)
         return err ? err->code : SL_ENOMEM;
@@ -302,7 +304,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     bo.window = o->window;
     bo.tukey_alpha = o->tukey_alpha;
     bo.adu_per_photon = g;
-    bo.read_noise_adu = g > 0 ? header_read_noise_adu(cube_reader_meta(s->rd), photons) * s->scale : 0;
+    bo.read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
     bo.nthreads = o->nthreads > 0 ? o->nthreads : 2;
     bo.measure = o->fftw_measure;
     bo.refine_iters = o->refine_iters;
@@ -400,13 +402,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     /* Bias (tsm.h): photons known -> photon bias plus the read noise the
      * simulator records (SIMRDN e-, SIMGAIN e-/adu); unknown (real camera
      * data) -> the floor TSM measures beyond the pupil cut-off. */
-    double rn_e = 0, gain = 1;
-    const cube_meta *hm = cube_reader_meta(s->rd);
-    if (photons > 0 && cube_meta_get_num(hm, "SIMRDN", &rn_e) == SL_OK && rn_e > 0) {
-        if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
-            gain = 1;
-        to.read_noise_adu = rn_e / gain * s->scale;
-    }
+    to.read_noise_adu = stream_read_noise_adu(s, photons);
     tsm *t = NULL, *tr = NULL;
     double *ps_ref = NULL, *ps_tgt = NULL;
     int rc = tsm_sequence(s, &to, &t, err);
@@ -415,15 +411,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     if (ref) {
         tsm_opts ro = to;
         double gr;
-        hm = cube_reader_meta(ref->rd);
-        photon_params(o, hm, &ro.photons_per_frame, &gr);
-        rn_e = 0, gain = 1, ro.read_noise_adu = 0;
-        if (ro.photons_per_frame > 0 && cube_meta_get_num(hm, "SIMRDN", &rn_e) == SL_OK &&
-            rn_e > 0) {
-            if (cube_meta_get_num(hm, "SIMGAIN", &gain) != SL_OK || !(gain > 0))
-                gain = 1;
-            ro.read_noise_adu = rn_e / gain * ref->scale;
-        }
+        photon_params(o, cube_reader_meta(ref->rd), &ro.photons_per_frame, &gr);
+        ro.read_noise_adu = stream_read_noise_adu(ref, ro.photons_per_frame);
         /* the target is a model PSF: noiseless, no bias to remove */
         tsm_opts tt = to;
         tt.bias = TSM_BIAS_NONE;

@@ -437,6 +437,10 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
                       "[cyc/px] TSM cut-off");
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
+    double arc, ext;
+    tsm_arc(t, &arc, &ext);
+    cube_meta_set_num(m, "RECARC", arc, "[bins] TSM bispectrum angular average");
+    cube_meta_set_num(m, "RECTEXT", ext, "[px] TSM object diameter capping RECARC");
     double level = 0;
     tsm_noise_level(t, &level);
     cube_meta_set_str(m, "RECBIAS", photons > 0 ? "photon" : "floor",

@@ -44,6 +44,7 @@ struct tsm {
     float complex *sref;      /* nang x nf alignment references */
     double *tr;               /* nang x nf noise transfer; NULL: 1 */
     double *pw;               /* nang x nf photon part of the mean power */
+    double arc, extent;       /* step 3's arc and the diameter capping it */
     sl_err err;
 };
 
@@ -55,6 +56,10 @@ int tsm_nproj(const tsm *t) { return t->ns; }
 int tsm_nfreq(const tsm *t) { return t->nf; }
 int tsm_npairs(const tsm *t) { return t->np; }
 int tsm_nframes(const tsm *t) { return t->nframes; }
+void tsm_arc(const tsm *t, double *arc_bins, double *extent_px)
+{
+    *arc_bins = t->arc, *extent_px = t->extent;
+}
 
 void tsm_free(tsm *t)
 {
@@ -483,6 +488,13 @@ int tsm_result(tsm *t, float *img)
      * 23 / 0.843, 23 / 0.901; 1.5 bins 24 / 0.857, 24 / 0.862,
      * 23 / 0.901; 2 bins 24 / 0.868, 24 / 0.869, 22 / 0.899. */
     double arc = t->o.arc_bins > 0 ? t->o.arc_bins : t->o.arc_bins < 0 ? 0.0 : 1.5;
+    t->extent = 0;
+    if (t->o.arc_bins == 0) {   /* capped by the diameter: tsm_extent.c */
+        tsm_power(t, t->psc);
+        t->extent = tsm_extent_px(t->psc, t->nang, nf, ns, 0.05);
+        arc = fmin(arc, tsm_arc_cap(t->extent, ns));
+    }
+    t->arc = arc;
     for (size_t i = 0; i < (size_t)t->nang * nf; i++) {   /* psc: scratch */
         t->psc[i] = t->ps[i] / t->nframes;
         t->pw[i] = photon_power(t, i, sbar, g, lv);

@@ -22,9 +22,13 @@
  *       averaged over the neighbouring angles whose lines pass within
  *       arc_bins of each other at the pair's largest frequency (the slices
  *       are lines through one 2-D spectrum; closure phases need no common
- *       origin, so the average is plain); then phi(0) = phi(1) = 0 (phi(1)
- *       is the unknown shift), the unit-phasor recursion phi(u1+u2) =
- *       phi(u1) + phi(u2) - beta(u1,u2) weighted per tsm_weight, then
+ *       origin, so the average is plain), the arc capped by the object's
+ *       diameter from the power's autocorrelation so that no feature's
+ *       phase turns by more than 0.4 rad over it (tsm_extent.c: a fixed
+ *       1.5 bins read a dm 1 companion 40 px out 0.25 mag faint); then
+ *       phi(0) = phi(1) = 0 (phi(1) is the unknown shift), the
+ *       unit-phasor recursion phi(u1+u2) = phi(u1) + phi(u2) -
+ *       beta(u1,u2) weighted per tsm_weight, then
  *       refine_iters steps of an exact weighted solver (majorise-minimise
  *       with one Cholesky factor per angle, accelerated), which moves whole
  *       bands beyond spectral gaps where the recursion left them rotated.
@@ -174,7 +178,8 @@ typedef struct tsm_opts {
     tsm_weight weight;
     int refine_iters;          /* exact-solver steps; < 0: none; 0: 10 */
     double arc_bins;           /* bispectrum averaged over angles within this
-                                * arc; 0: 1.5, < 0: off */
+                                * arc; 0: 1.5 capped by the measured
+                                * diameter (tsm_extent.c), < 0: off */
     double centroid_frac;      /* centroid of the part above this x max;
                                 * 0: 0.05, < 0: positive part */
     double align_deg;          /* align to neighbours within; 0: 8, < 0: off */
@@ -250,6 +255,18 @@ int tsm_set_reference(tsm *t, const double *ps_ref, const double *ps_target,
  * s = i - nproj/2) and their 1-D phases (nangles*nfreq, radians). */
 int tsm_projections(tsm *t, float *proj);
 int tsm_phases(tsm *t, double *phase);
+
+/* The arc step 3 used and the object diameter (px) it was capped by
+ * (tsm_extent.c); both 0 before tsm_result or when the arc was given. */
+void tsm_arc(const tsm *t, double *arc_bins, double *extent_px);
+
+/* ---- the object's extent (tsm_extent.c), used by tsm_result -----------
+ * tsm_extent_px: diameter in px from the mean power ps (nangles*nfreq,
+ * bias-corrected): the largest autocorrelation lag above level x its
+ * peak, over the angles (NAN: out of memory).  tsm_arc_cap: the largest
+ * arc (bins) that turns a feature extent_px away by <= 0.4 rad. */
+double tsm_extent_px(const double *ps, int nang, int nf, int ns, double level);
+double tsm_arc_cap(double extent_px, int ns);
 
 /* ---- the 1-D phases (tsm_phase.c), used by tsm_result -----------------
  * Pairs are stored row by row: for u1 = 1..J-1 the row holds u2 = 1..len

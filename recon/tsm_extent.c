@@ -1,0 +1,74 @@
+/* tsm_extent.c - the object's diameter from TSM's projection power, and
+ * the angular average that diameter allows (see tsm.h, step 3).
+ *
+ * Why.  Step 3 averages each bispectrum element over the neighbouring
+ * angles (tsm_phase_inputs, arc_bins): it buys SNR where the 1-D
+ * recursion is starved of pairs.  But the object's spectrum is not the
+ * same on neighbouring lines: moving a frequency u perpendicular to its
+ * line by `arc` bins turns the phase of a feature at distance x from the
+ * centre by 2 pi x arc / ns.  A binary's closure phases are periodic in
+ * the angle with that rate, and averaging them over the arc low-passes
+ * them: the companion's phase modulation shrinks and it reads faint.
+ * Measured (200^2 bench binary, noiseless, 100 frames, tsm-fourier 180):
+ * at 1.5 bins dm 1 reads 1.06 / 1.16 / 1.25 at 20 / 30 / 40 px
+ * separation, dm 2 at 40 px reads 2.17; without the average 1.002 /
+ * 1.002 / 1.002 and 1.99.  So the arc is capped at what the measured
+ * diameter E allows: arc <= ARC_TURN ns / (2 pi E), a turn of at most
+ * ARC_TURN radians at the arc's end for the farthest feature.
+ *
+ * The diameter.  Per angle, the autocorrelation of the projection is the
+ * inverse transform of its bias-corrected mean power; its support is the
+ * projected diameter (convolved with the speckle PSF's autocorrelation,
+ * so E errs large: the cap errs small, towards less averaging).  E is
+ * the largest lag where the autocorrelation exceeds `level` of its peak
+ * at two adjacent lags (a lone ringing sample does not count), maximised
+ * over the angles.  Cost: nangles x ns/2 x nf multiply-adds with a cosine
+ * table of ns entries (1.8e6 at 180 angles, 200^2: ~2 ms), no FFT plan.
+ */
+#include "tsm.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+/* Phase turn allowed at the arc's end, radians: 0.4 leaves a dm 1
+ * companion at 40 px within ~0.02 mag (measured: 0.5 bins there, a turn
+ * of 0.63 rad, reads +0.017). */
+#define ARC_TURN 0.4
+
+double tsm_extent_px(const double *ps, int nang, int nf, int ns, double level)
+{
+    double *ctab = malloc((size_t)ns * sizeof *ctab);
+    double *ac = malloc((size_t)(ns / 2 + 1) * sizeof *ac);
+    double e = NAN;
+    if (!ctab || !ac)
+        goto free_tables;
+    for (int i = 0; i < ns; i++)
+        ctab[i] = cos(2.0 * M_PI * i / ns);
+    e = 0;
+    for (int a = 0; a < nang; a++) {
+        const double *p = ps + (size_t)a * nf;
+        for (int x = 0; x <= ns / 2; x++) {
+            double s = p[0];
+            for (int u = 1, k = x; u < nf; u++, k = (k + x) % ns)
+                s += 2.0 * p[u] * ctab[k];
+            ac[x] = s;
+        }
+        if (!(ac[0] > 0))
+            continue;
+        double thr = level * ac[0];
+        for (int x = ns / 2; x >= 1; x--)
+            if (ac[x] > thr && ac[x - 1] > thr) {
+                e = fmax(e, x);
+                break;
+            }
+    }
+free_tables:
+    free(ctab);
+    free(ac);
+    return e;
+}
+
+double tsm_arc_cap(double extent_px, int ns)
+{
+    return extent_px > 0 ? ARC_TURN * ns / (2.0 * M_PI * extent_px) : INFINITY;
+}

@@ -492,6 +492,7 @@ int tsm_result(tsm *t, float *img)
     if (t->o.arc_bins == 0) {   /* capped by the diameter: tsm_extent.c */
         tsm_power(t, t->psc);
         t->extent = tsm_extent_px(t->psc, t->nang, nf, ns, 0.05);
+        t->extent = t->extent > 0 ? t->extent : 0;   /* NAN: no memory, no cap */
         arc = fmin(arc, tsm_arc_cap(t->extent, ns));
     }
     t->arc = arc;

@@ -396,6 +396,10 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
     to.cutoff_cyc_px = o->cutoff_cyc_px;
     to.inverse = (tsm_inverse)o->tsm_inverse;
+    if (o->tsm_corrected_phases) {
+        to.bispec_bias_phase = 1;
+        to.weight = TSM_WEIGHT_SNR2;
+    }
     to.photons_per_frame = photons;
     to.fftw_flags = o->fftw_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
     to.threads = o->nthreads;   /* 0: online CPUs, at most 4 */
@@ -437,6 +441,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
                       "[cyc/px] TSM cut-off");
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
+    cube_meta_set_str(m, "RECTPHAS", photons > 0 && o->tsm_corrected_phases ? "corrected" : "raw",
+                      "TSM phases: raw or photon-bias-corrected bispectrum");
     double arc, ext;
     tsm_arc(t, &arc, &ext);
     cube_meta_set_num(m, "RECARC", arc, "[bins] TSM bispectrum angular average");

@@ -84,6 +84,10 @@ typedef struct pipeline_opts {
     double target_error;      /* auto and PIPE_SKIP_ANGLES: the 1 - c wanted
                                * against the cophased image; 0: 0.1 */
     int tsm_inverse;          /* TSM_INV_* (tsm.h); 0: FBP */
+    int tsm_corrected_phases; /* TSM phases from the photon-bias-corrected
+                               * bispectrum, SNR^2-weighted (tsm.h, Bias:
+                               * better dm at >= ~1e4 photons/frame, worse
+                               * below); 0: the raw bispectrum */
     double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
                                * support with PIPE_SKIP_SUPPORT */
 } pipeline_opts;

@@ -12,6 +12,7 @@ typedef struct bcli_config {
     int method, param, ref; /* param: R2 (direct) or projections (TSM) */
     int skips;              /* PIPE_SKIP_* bits; -1: the method's default */
     double target;          /* auto: the 1 - c wanted; 0: the default */
+    int inverse;            /* TSM: TSM_INV_* (0: FBP) */
 } bcli_config;
 
 /* Option lists (bench_args.c): append the parsed values to out; 0, or 2
@@ -40,6 +41,7 @@ typedef struct bcli_row {
     double sep_lod, pa_deg, dm_mag; /* binary scenes */
     int method;                /* enum pipeline_method */
     int nangles, r2;           /* as requested (0 = the pipeline's default) */
+    int inverse;               /* TSM: TSM_INV_* as requested (0: FBP) */
     int ref;                   /* 1: reference sequence + cophased target */
     int skips;                 /* requested PIPE_SKIP_* bits, -1: default */
     double target;             /* auto: requested target 1 - c (0: 0.1) */

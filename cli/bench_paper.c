@@ -10,19 +10,20 @@
 
 #include "bench_cli.h"
 #include "pipeline.h"
+#include "tsm.h"
 
 static int ok(const bcli_row *r) { return r->status == SL_OK; }
 
 /* The row of a block, data set and configuration (size: width; < 0 any). */
 static const bcli_row *find(GArray *rows, int block, const char *scene,
-                            int size, int method, int nangles, int ref,
-                            double sep, double dm)
+                            int size, int method, int nangles, int inverse,
+                            int ref, double sep, double dm)
 {
     for (guint i = 0; i < rows->len; i++) {
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
         if (r->block == block && !strcmp(r->scene, scene) &&
-            (size < 0 || r->width == size) &&
-            r->method == method && r->nangles == nangles && r->ref == ref &&
+            (size < 0 || r->width == size) && r->method == method &&
+            r->nangles == nangles && r->inverse == inverse && r->ref == ref &&
             (block != 2 || (r->sep_lod == sep && r->dm_mag == dm)))
             return r;
     }
@@ -40,8 +41,12 @@ static void cell(const bcli_row *r, int k)
         printf("  %10.3f  ", k <= 3 ? r->s.c : r->s.c_hp);
 }
 
-static const int t2_method[] = {PIPE_DIRECT, PIPE_TSM, PIPE_TSM, PIPE_TSM_FOURIER, PIPE_TSM_FOURIER};
-static const int t2_angles[] = {0, 180, 18, 180, 18};
+/* Table 2's columns: the paper's three, then ours only. */
+enum { T2_COLS = 6 };
+static const int t2_method[] = {PIPE_DIRECT, PIPE_TSM, PIPE_TSM, PIPE_TSM_FOURIER,
+                                PIPE_TSM_FOURIER, PIPE_TSM_FOURIER};
+static const int t2_angles[] = {0, 180, 18, 180, 18, 18};
+static const int t2_inverse[] = {0, 0, 0, 0, 0, TSM_INV_ITER};
 
 static void paper_table(GArray *rows, int size, int ref)
 {
@@ -49,12 +54,13 @@ static void paper_table(GArray *rows, int size, int ref)
     static const char *paper_c6[] = {"0.94", "0.83", "0.94"};
     static const char *paper_ce[] = {"0.96", "0.92", "0.95"};
     static const char *head[] = {"Direct Bispectrum", "TSM 180 proj.",
-                                 "TSM 18 proj.", "TSM-Fourier 180", "TSM-Fourier 18"};
+                                 "TSM 18 proj.", "TSM-Fourier 180", "TSM-Fourier 18",
+                                 "TSM-F 18 iterative"};
     printf("\n%-22s", ref ? "WITH a reference" : "no reference");
-    for (int k = 0; k < 5; k++)
+    for (int k = 0; k < T2_COLS; k++)
         printf("| %-26s", head[k]);
     printf("\n%-22s", "");
-    for (int k = 0; k < 5; k++)
+    for (int k = 0; k < T2_COLS; k++)
         printf("| %-12s %-13s", "ours", k < 3 ? "paper" : "");
     printf("\n");
     /* Rows: wall and CPU time (six-star run), c six-star, c extended, and
@@ -64,10 +70,11 @@ static void paper_table(GArray *rows, int size, int ref)
                                   "  c high-pass, 6-star", "  c high-pass, ext."};
     for (int row = 0; row < 6; row++) {
         printf("%-22s", label[row]);
-        for (int k = 0; k < 5; k++) {
+        for (int k = 0; k < T2_COLS; k++) {
             const char *sc = row == 3 || row == 5 ? "extended" : "six-star";
             printf("|");
-            cell(find(rows, 1, sc, size, t2_method[k], t2_angles[k], ref, 0, 0), row);
+            cell(find(rows, 1, sc, size, t2_method[k], t2_angles[k], t2_inverse[k], ref, 0, 0),
+                 row);
             printf("%-13s", k >= 3 || row == 1 || row >= 4 ? "" : row == 0 ?
                    paper_time[k] : row == 2 ? paper_c6[k] : paper_ce[k]);
         }
@@ -109,7 +116,7 @@ static void binaries_table(GArray *rows, int ref)
     static const char *head[] = {"direct", "TSM 180", "TSM 18", "TSM-F 180",
                                  "cophased (metric floor)"};
     int pass[5] = {0}, total[5] = {0};
-    const bcli_row *first = find(rows, 2, "binary", -1, PIPE_DIRECT, 0, ref, 5, 0);
+    const bcli_row *first = find(rows, 2, "binary", -1, PIPE_DIRECT, 0, 0, ref, 5, 0);
     if (!first)
         return;
     int size = first->width;
@@ -128,7 +135,7 @@ static void binaries_table(GArray *rows, int ref)
             const bcli_row *any = NULL;
             for (int k = 0; k < 4; k++) {
                 const bcli_row *r = find(rows, 2, "binary", size, t2_method[k],
-                                         t2_angles[k], ref, seps[i], dms[j]);
+                                         t2_angles[k], 0, ref, seps[i], dms[j]);
                 printf("|");
                 binary_cell(r ? &r->s : NULL, dms[j], r && ok(r));
                 total[k] += r != NULL;
@@ -192,7 +199,7 @@ void bcli_print_targets(GArray *rows)
         for (guint k = 0; k < rows->len; k++) {
             const bcli_row *r = &g_array_index(rows, bcli_row, k);
             if (r->width != 200 || r->height != 200 || r->frames != 100 ||
-                strcmp(r->scene, "binary") || r->ref || r->photons != 0 ||
+                strcmp(r->scene, "binary") || r->ref || r->photons != 0 || r->inverse ||
                 r->method != tg[i].method || !ok(r) ||
                 (r->method == PIPE_DIRECT ? r->t.r2_px != 28 : r->t.nangles != tg[i].nangles))
                 continue;

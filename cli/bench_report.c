@@ -9,6 +9,7 @@
 #include "bench_cli.h"
 #include "catalog.h"
 #include "pipeline.h"
+#include "tsm.h"
 
 static int ok(const bcli_row *r) { return r->status == SL_OK; }
 static double err1(const bcli_row *r) { return 1.0 - r->s.c; }
@@ -60,10 +61,11 @@ void bcli_config_label(const bcli_row *r, char *buf, size_t n)
         else
             snprintf(buf, n, "%s R2=auto%s", m, ref);
     } else if (r->method == PIPE_TSM || r->method == PIPE_TSM_FOURIER) {
+        const char *inv = r->inverse == TSM_INV_ITER ? " iter" : "";
         if (isfinite(r->t.nangles))
-            snprintf(buf, n, "%s %.0f%s", m, r->t.nangles, ref);
+            snprintf(buf, n, "%s %.0f%s%s", m, r->t.nangles, inv, ref);
         else
-            snprintf(buf, n, "%s %d%s", m, r->nangles > 0 ? r->nangles : 180, ref);
+            snprintf(buf, n, "%s %d%s%s", m, r->nangles > 0 ? r->nangles : 180, inv, ref);
     } else {
         snprintf(buf, n, "%s%s", m, ref);
     }
@@ -325,7 +327,8 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
             "err_hp,sep_px,pa_deg_meas,dm_mag_meas,sep_err_px,pa_err_deg,"
             "dm_err_mag,floor_sep_err_px,floor_pa_err_deg,floor_dm_err_mag,"
             "group,pareto,status,skips,target_error,bad_frames,oversample,"
-            "method_run,crop_px,cutoff_cyc_px,rejected,pred_error,chosen\n");
+            "method_run,crop_px,cutoff_cyc_px,rejected,pred_error,chosen,"
+            "inverse\n");
     for (guint i = 0; i < rows->len; i++) {
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
         int bin = is_binary(r);
@@ -362,7 +365,8 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
         csv_num(f, r->t.cutoff_cyc_px);
         csv_num(f, r->t.rejected);
         csv_num(f, r->t.pred_error);
-        fprintf(f, ",\"%s\"\n", r->t.chosen);
+        fprintf(f, ",\"%s\",%s\n", r->t.chosen,
+                r->method == PIPE_DIRECT ? "" : r->inverse == TSM_INV_ITER ? "iter" : "fbp");
     }
     int bad = ferror(f) | (fclose(f) != 0);
     if (bad)

@@ -38,18 +38,18 @@ int bcli_run_skips(bcli_ctx *c)
         d.oversample = pass == 2 ? 2 : 0;
         d.photons = pass == 3 ? 1000 : 0;
         n = 0;
-        cf[n++] = (bcli_config){PIPE_TSM_FOURIER, 180, 0, 0, 0};
+        cf[n++] = (bcli_config){PIPE_TSM_FOURIER, 180, 0, 0, 0, 0};
         for (int k = 0; k < 4; k++)
-            cf[n++] = (bcli_config){PIPE_TSM_FOURIER, 180, 0, single[k], 0};
-        cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.1};
+            cf[n++] = (bcli_config){PIPE_TSM_FOURIER, 180, 0, single[k], 0, 0};
+        cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.1, 0};
         for (int k = 0; k < 4; k++)
-            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL & ~single[k], 0.1};
+            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL & ~single[k], 0.1, 0};
         if (pass == 0) {
-            cf[n++] = (bcli_config){PIPE_TSM, 180, 0, 0, 0};
-            cf[n++] = (bcli_config){PIPE_DIRECT, 0, 0, 0, 0};
-            cf[n++] = (bcli_config){PIPE_DIRECT, 0, 0, PIPE_SKIP_CROP, 0};
-            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.06};
-            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.2};
+            cf[n++] = (bcli_config){PIPE_TSM, 180, 0, 0, 0, 0};
+            cf[n++] = (bcli_config){PIPE_DIRECT, 0, 0, 0, 0, 0};
+            cf[n++] = (bcli_config){PIPE_DIRECT, 0, 0, PIPE_SKIP_CROP, 0, 0};
+            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.06, 0};
+            cf[n++] = (bcli_config){PIPE_AUTO, 0, 0, PIPE_SKIP_ALL, 0.2, 0};
         }
         rc = bcli_run_dataset(c, &d, cf, n, BLOCK_SKIPS);
     }

@@ -36,6 +36,7 @@
 
 #include "bench_cli.h"
 #include "pipeline.h"
+#include "tsm.h"
 
 typedef struct bench_args {
     gboolean quick, paper, speed, skips_report, estimate, keep_data;
@@ -136,7 +137,7 @@ static int parse_configs(const sweep *sw, GArray *out)
         for (int r = 0; r < nref; r++)
             for (guint q = 0; q < sk->len; q++)
                 for (int k = 0; k < np; k++) {
-                    config c = {meth, 0, refs[r], g_array_index(sk, int, q), 0};
+                    config c = {meth, 0, refs[r], g_array_index(sk, int, q), 0, 0};
                     if (meth == PIPE_AUTO)
                         c.target = g_array_index(tg, double, k);
                     else
@@ -193,6 +194,7 @@ static int same_point(const bcli_row *a, const bench_sim *d, const config *cf)
            a->photons == d->photons && a->sep_lod == d->sep_lod &&
            a->dm_mag == d->dm_mag && a->method == cf->method &&
            a->ref == cf->ref && a->skips == cf->skips && a->target == cf->target &&
+           a->inverse == cf->inverse &&
            a->inject == d->bad_frames && a->oversample == d->oversample &&
            (cf->method == PIPE_DIRECT ? a->r2 : a->nangles) == cf->param;
 }
@@ -217,6 +219,7 @@ static void measure_one(ctx *c, const bench_sim *d, const char *cube,
     r.ref = cf->ref;
     r.skips = cf->skips;
     r.target = cf->target;
+    r.inverse = cf->inverse;
     r.inject = d->bad_frames;
     r.oversample = d->oversample;
     r.repeat = a->repeat;
@@ -232,6 +235,7 @@ static void measure_one(ctx *c, const bench_sim *d, const char *cube,
         o.nangles = r.nangles = cf->param;
     o.skips = cf->skips;
     o.target_error = cf->target;
+    o.tsm_inverse = cf->inverse;
     o.nthreads = a->threads;
     o.fftw_measure = !a->estimate;
     if (cf->ref) {
@@ -363,15 +367,17 @@ static int run_sweep(ctx *c, const sweep *sw)
 }
 
 /* The paper's Table 2 (six-star, extended; direct, TSM 180, TSM 18, and
- * our Fourier-slice TSM) at 200^2 and 128^2 (or --sizes), then binaries at
+ * our Fourier-slice TSM, at 18 angles also with the iterative inverse) at 200^2 and 128^2 (or --sizes), then binaries at
  * the first size: separations 5..20 lambda/D, dm 0..2. */
 static int run_paper(ctx *c)
 {
     static const config t2[] = {
-        {PIPE_DIRECT, 0, 0, -1, 0}, {PIPE_TSM, 180, 0, -1, 0}, {PIPE_TSM, 18, 0, -1, 0},
-        {PIPE_TSM_FOURIER, 180, 0, -1, 0}, {PIPE_TSM_FOURIER, 18, 0, -1, 0},
-        {PIPE_DIRECT, 0, 1, -1, 0}, {PIPE_TSM, 180, 1, -1, 0}, {PIPE_TSM, 18, 1, -1, 0},
-        {PIPE_TSM_FOURIER, 180, 1, -1, 0}, {PIPE_TSM_FOURIER, 18, 1, -1, 0}};
+        {PIPE_DIRECT, 0, 0, -1, 0, 0}, {PIPE_TSM, 180, 0, -1, 0, 0}, {PIPE_TSM, 18, 0, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 180, 0, -1, 0, 0}, {PIPE_TSM_FOURIER, 18, 0, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 18, 0, -1, 0, TSM_INV_ITER},
+        {PIPE_DIRECT, 0, 1, -1, 0, 0}, {PIPE_TSM, 180, 1, -1, 0, 0}, {PIPE_TSM, 18, 1, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 180, 1, -1, 0, 0}, {PIPE_TSM_FOURIER, 18, 1, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 18, 1, -1, 0, TSM_INV_ITER}};
     static const char *const scenes[] = {"six-star", "extended"};
     GArray *sizes = g_array_new(FALSE, FALSE, sizeof(int));
     int rc = bcli_parse_sizes(c->a->sizes ? c->a->sizes : "200,128", sizes);
@@ -383,13 +389,13 @@ static int run_paper(ctx *c)
             d.width = g_array_index(sizes, int, z);
             d.height = g_array_index(sizes, int, z + 1);
             d.seed = (uint64_t)c->a->seed;
-            rc = bcli_run_dataset(c, &d, t2, 10, 1);
+            rc = bcli_run_dataset(c, &d, t2, (int)(sizeof t2 / sizeof t2[0]), 1);
         }
     static const config bin[] = {
-        {PIPE_DIRECT, 0, 0, -1, 0}, {PIPE_TSM, 180, 0, -1, 0}, {PIPE_TSM, 18, 0, -1, 0},
-        {PIPE_TSM_FOURIER, 180, 0, -1, 0},
-        {PIPE_DIRECT, 0, 1, -1, 0}, {PIPE_TSM, 180, 1, -1, 0}, {PIPE_TSM, 18, 1, -1, 0},
-        {PIPE_TSM_FOURIER, 180, 1, -1, 0}};
+        {PIPE_DIRECT, 0, 0, -1, 0, 0}, {PIPE_TSM, 180, 0, -1, 0, 0}, {PIPE_TSM, 18, 0, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 180, 0, -1, 0, 0},
+        {PIPE_DIRECT, 0, 1, -1, 0, 0}, {PIPE_TSM, 180, 1, -1, 0, 0}, {PIPE_TSM, 18, 1, -1, 0, 0},
+        {PIPE_TSM_FOURIER, 180, 1, -1, 0, 0}};
     static const double seps[] = {5, 10, 15, 20}, dms[] = {0, 1, 2};
     for (int i = 0; i < 4 && !rc && sizes->len >= 2; i++)
         for (int j = 0; j < 3 && !rc; j++) {

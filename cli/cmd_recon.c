@@ -12,9 +12,10 @@
 #include "pipeline.h"
 #include "powspec.h"
 #include "preview.h"
+#include "tsm.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases;
+    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse;
     int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
@@ -140,6 +141,14 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
             return 2;
         }
     }
+    if (a->tsm_inverse) {
+        if (!strcmp(a->tsm_inverse, "fbp")) o.tsm_inverse = TSM_INV_AUTO;
+        else if (!strcmp(a->tsm_inverse, "iter")) o.tsm_inverse = TSM_INV_ITER;
+        else {
+            fprintf(stderr, "specklab recon: unknown --tsm-inverse '%s' (fbp, iter)\n", a->tsm_inverse);
+            return 2;
+        }
+    }
     preview_stretch stretch = PREVIEW_SQRT;
     if (a->stretch && preview_stretch_parse(a->stretch, &stretch) != SL_OK) {
         fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
@@ -198,6 +207,7 @@ int cmd_recon(int argc, char **argv)
         {"wiener", 0, 0, G_OPTION_ARG_DOUBLE, &a.wiener, "reference regulariser (default 1e-3 direct, 0.05 TSM)", "X"},
         {"photons", 0, 0, G_OPTION_ARG_DOUBLE, &a.photons, "mean photons per frame (default: header SIMPHOT; <0: not photon data)", "N"},
         {"adu-per-photon", 0, 0, G_OPTION_ARG_DOUBLE, &a.gain_adu_per_photon, "detector gain in ADU per photon (default: header)", "G"},
+        {"tsm-inverse", 0, 0, G_OPTION_ARG_STRING, &a.tsm_inverse, "TSM step 6: filtered back projection, or the iterative non-negative inverse (few angles; default fbp)", "fbp|iter"},
         {"tsm-phases", 0, 0, G_OPTION_ARG_STRING, &a.tsm_phases, "TSM phases from the raw or the photon-bias-corrected bispectrum (raw; corrected: better dm from ~1e4 photons/frame)", "raw|corrected"},
         {"window", 0, 0, G_OPTION_ARG_STRING, &a.window, "direct: frame apodisation none|hann|tukey (default tukey)", "W"},
         {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation, "repair raw pixels at or above this", "ADU"},
@@ -238,7 +248,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.stretch); g_free(a.skips);
+    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips);
     return status;
 }
 

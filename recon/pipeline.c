@@ -441,6 +441,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
                       "[cyc/px] TSM cut-off");
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
+    cube_meta_set_str(m, "RECTINV", to.inverse == TSM_INV_ITER ? "iterative" : "fbp",
+                      "TSM inverse: filtered back projection or iterative");
     cube_meta_set_str(m, "RECTPHAS", photons > 0 && o->tsm_corrected_phases ? "corrected" : "raw",
                       "TSM phases: raw or photon-bias-corrected bispectrum");
     double arc, ext;

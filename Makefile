@@ -269,7 +269,7 @@ FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g \
 FUZZ_BIN   := $(patsubst tests/fuzz/%.c,$(FUZZ_BUILD)/%,$(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_FITS_SRC  := recon/cube.c recon/cube_guard.c recon/cube_write.c recon/seq.c \
                   recon/status.c
-FUZZ_MASK_SRC  := recon/mask.c recon/rng.c recon/status.c
+FUZZ_MASK_SRC  := recon/mask.c recon/mask_gen.c recon/rng.c recon/status.c
 FUZZ_SCENE_SRC := recon/scene.c recon/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/status.c
 FUZZ_CONFIG_SRC := daemon/config.c recon/status.c
@@ -283,7 +283,7 @@ $(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuz
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $(shell $(PKG) --cflags cfitsio) $< $(FUZZ_FITS_SRC) -o $@ \
 	    $(shell $(PKG) --libs cfitsio) -lm
-$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/mask.h tests/fuzz/fuzz_util.h
+$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/mask.h recon/mask_int.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_MASK_SRC) -o $@ -lm
 $(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/scene.h tests/fuzz/fuzz_util.h

@@ -215,7 +215,9 @@ quick: all
 # Speed and accuracy live here, never in timed tests: a quick sweep, then
 # the issue's speed targets (200^2, 100 frames, median of 5) checked.
 bench: all
-	@bin/specklab bench --quick && bin/specklab bench --speed
+	@mkdir -p out/bench
+	@bin/specklab bench --quick --csv out/bench/quick.csv --png out/bench/quick.png \
+	    && bin/specklab bench --speed --csv out/bench/speed.csv --png out/bench/speed.png
 
 # The numerical-stability suite with its slow cases too.
 stress: all

@@ -377,6 +377,7 @@ int cmd_binary(int argc, char **argv)
         cli_json_num(jb, "dm_mag", b.dm_mag);
         cli_json_num(jb, "dm_err_mag", b.dm_err_mag);
         cli_json_num(jb, "flux_ratio", b.flux_ratio);
+        cli_json_num(jb, "err_inflation", b.err_inflation);
         cli_json_num(jb, "sep_arcsec", b.sep_px * ps);
         cli_json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
         json_builder_set_member_name(jb, "pa_ambiguous");

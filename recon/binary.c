@@ -33,6 +33,8 @@ struct binary_plan {
     fftw_complex *work;      /* h*nx: c2r input (destroyed) */
     fftw_plan fwd, inv;
     float *scratch;          /* w*h: medians */
+    double *rimg, *jimg;     /* w*h, NPAR w*h: residual and sensitivity
+                              * images (residual_cov) */
     binary_fit f;            /* frequencies and the fit's workspace */
     sl_err err;
 };
@@ -57,7 +59,9 @@ binary_plan *binary_plan_new(int w, int h, sl_err *err)
     p->spec = fftw_alloc_complex(nh);
     p->work = fftw_alloc_complex(nh);
     p->scratch = malloc(n * sizeof *p->scratch);
-    if (!p->img || !p->anti || !p->spec || !p->work || !p->scratch ||
+    p->rimg = malloc(n * sizeof *p->rimg);
+    p->jimg = malloc(NPAR * n * sizeof *p->jimg);
+    if (!p->img || !p->anti || !p->spec || !p->work || !p->scratch || !p->rimg || !p->jimg ||
         binary_fit_init(&p->f, w, h) != SL_OK)
         goto fail_alloc;
     p->fwd = fftw_plan_dft_r2c_2d(h, w, p->img, p->spec, FFTW_ESTIMATE);
@@ -85,6 +89,8 @@ void binary_plan_free(binary_plan *p)
     fftw_free(p->spec);
     fftw_free(p->work);
     free(p->scratch);
+    free(p->rimg);
+    free(p->jimg);
     binary_fit_clear(&p->f);
     free(p);
 }
@@ -309,6 +315,56 @@ static double choose(binary_plan *p, const cand *c, int nc, int nraw,
     return bcost;
 }
 
+/* The covariance of th when the residuals are correlated between
+ * frequencies.  binary_fit_cov's s^2 (J^T J)^-1 treats the m kept
+ * frequencies as independent: right for white noise, not for a
+ * reconstruction's artefacts, which sit in a few hundred pixels around the
+ * object (the mask's sidelobes turned asymmetric by phase errors) and so
+ * are correlated over the whole spectrum.  Model: the residual image r(x)
+ * (data less the projected model, transformed back) estimates a field
+ * of independent pixels with local power S(x) (below); then J^T Sigma J =
+ * 1/4 sum_x S(x) j_a(x) j_b(x), j_a the image of parameter a's
+ * perturbation (c2r of f->perp), and C = A^-1 (J^T Sigma J) A^-1
+ * (binary_fit_sandwich).  For
+ * white noise this is s^2 A^-1 again; where the artefacts sit far from
+ * both stars they hardly count (measured in binary.h, Uncertainties).
+ * 0 and C untouched when A is singular.
+ * Cost: NPAR + 1 inverse FFTs of w x h and NPAR (NPAR + 1) / 2 w h
+ * multiply-adds. */
+static int residual_cov(binary_plan *p, const double *th, double *C)
+{
+    binary_fit *f = &p->f;
+    size_t nh = (size_t)p->h * p->nx, n = (size_t)p->w * p->h;
+    memset(p->work, 0, nh * sizeof *p->work);
+    for (int q = 0; q < f->m; q++)
+        p->work[(size_t)f->bj[q] * p->nx + f->bi[q]] = f->bs[q] - f->bmod[q];
+    fftw_execute(p->inv);
+    for (size_t i = 0; i < n; i++)
+        p->rimg[i] = p->anti[i] * p->anti[i] / ((double)n * n);
+    binary_fit_perp(f, th);
+    for (int a = 0; a < NPAR; a++) {
+        memset(p->work, 0, nh * sizeof *p->work);
+        for (int q = 0; q < f->m; q++)
+            p->work[(size_t)f->bj[q] * p->nx + f->bi[q]] = f->perp[(size_t)q * NPAR + a];
+        fftw_execute(p->inv);
+        memcpy(p->jimg + (size_t)a * n, p->anti, n * sizeof *p->anti);
+    }
+    /* r(x)^2 estimates the local power of the residual's part that lies
+     * on the kept frequencies (a fraction fk = 2 m / (w h) of the half
+     * plane) and perpendicular to the model (half of it), so the field's
+     * own power is 2 r^2 / fk; J^T Sigma J = 1/4 sum_x (that) j_a j_b. */
+    double norm = 0.25 * 2.0 / (2.0 * f->m / (double)n), M[NPAR * NPAR];
+    for (int a = 0; a < NPAR; a++)
+        for (int b = 0; b <= a; b++) {
+            const double *ja = p->jimg + (size_t)a * n, *jb = p->jimg + (size_t)b * n;
+            double s = 0;
+            for (size_t i = 0; i < n; i++)
+                s += p->rimg[i] * ja[i] * jb[i];
+            M[a * NPAR + b] = M[b * NPAR + a] = norm * s;
+        }
+    return binary_fit_sandwich(f, th, M, C);
+}
+
 /* Fill out's geometry from the companion offset d, the midpoint (cx, cy)
  * and d's covariance cd (xx, xy, yy). */
 static void state(binary_result *out, const double d[2], double cx,
@@ -429,16 +485,29 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
         memcpy(cd, pk, sizeof cd);
         out->d_from_peaks = 1;
     }
-    state(out, d, mx, my, cd, w, h);
+    /* The stated errors take the residuals' correlation (residual_cov),
+     * never below the white-noise ones; the choices above (ambiguity, d's
+     * source) and the significance test below keep the white-noise ones,
+     * so the measurement itself does not change. */
+    double Cs[NPAR * NPAR], kd = 1, kr = 1;
+    if (residual_cov(p, th, Cs)) {
+        double tw = C[2 * NPAR + 2] + C[3 * NPAR + 3], ts = Cs[2 * NPAR + 2] + Cs[3 * NPAR + 3];
+        kd = tw > 0 && ts > tw ? ts / tw : 1;
+        kr = C[4 * NPAR + 4] > 0 && Cs[4 * NPAR + 4] > C[4 * NPAR + 4]
+                 ? Cs[4 * NPAR + 4] / C[4 * NPAR + 4] : 1;
+    }
+    double cdk[3] = {cd[0] * kd, cd[1] * kd, cd[2] * kd};
+    state(out, d, mx, my, cdk, w, h);
     out->flux_ratio = r;
     out->dm_mag = -2.5 * log10(r);
-    out->flux_ratio_err = sr;
-    out->dm_err_mag = 2.5 / M_LN10 * sqrt(C[4 * NPAR + 4]);
+    out->flux_ratio_err = sr * sqrt(kr);
+    out->dm_err_mag = 2.5 / M_LN10 * sqrt(C[4 * NPAR + 4] * kr);
+    out->err_inflation = kd;
     out->background = bg;
     out->noise = sqrt(noise2 / (double)n);
     out->nfreq = f->m;
     out->fit_rms = noise2 > 0 ? sqrt(cost / f->m / (0.5 * noise2)) : NAN;
-    if (r < 1e-4 || r < 3.0 * sr)
+    if (r < 1e-4 || r < 3.0 * sr)   /* sr: the uninflated error */
         return sl_seterr(&p->err, SL_EDATA, "binary_measure: no significant "
                          "companion (flux ratio %.3g +- %.2g)", r, sr);
     return SL_OK;

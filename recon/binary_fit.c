@@ -23,13 +23,14 @@ int binary_fit_init(binary_fit *f, int w, int h)
     f->bs = malloc(nh * sizeof *f->bs);
     f->bmod = malloc(nh * sizeof *f->bmod);
     f->bmag = malloc(nh * sizeof *f->bmag);
+    f->perp = malloc(nh * NPAR * sizeof *f->perp);
     f->kx = malloc((size_t)f->nx * sizeof *f->kx);
     f->ky = malloc((size_t)h * sizeof *f->ky);
     f->e1x = malloc((size_t)f->nx * sizeof *f->e1x);
     f->edx = malloc((size_t)f->nx * sizeof *f->edx);
     f->e1y = malloc((size_t)h * sizeof *f->e1y);
     f->edy = malloc((size_t)h * sizeof *f->edy);
-    if (!f->bi || !f->bj || !f->bs || !f->bmod || !f->bmag || !f->kx ||
+    if (!f->bi || !f->bj || !f->bs || !f->bmod || !f->bmag || !f->perp || !f->kx ||
         !f->ky || !f->e1x || !f->edx || !f->e1y || !f->edy) {
         binary_fit_clear(f);
         return SL_ENOMEM;
@@ -48,6 +49,7 @@ void binary_fit_clear(binary_fit *f)
     free(f->bs);
     free(f->bmod);
     free(f->bmag);
+    free(f->perp);
     free(f->kx);
     free(f->ky);
     free(f->e1x);
@@ -334,4 +336,55 @@ void binary_fit_project(binary_fit *f, const double *th)
         double re = creal(f->bs[b] * e);
         f->bmod[b] = a2 > 0 && re > 0 ? re / a2 * conj(e) : 0;
     }
+}
+
+void binary_fit_perp(binary_fit *f, const double *th)
+{
+    set_phasors(f, th);
+    double r = exp(th[4]);
+    for (int b = 0; b < f->m; b++) {
+        double complex q, *P = f->perp + (size_t)b * NPAR;
+        double bas[4];
+        double complex e = model_conj(f, th, r, b, &q, bas);
+        double complex z = f->bs[b] * e;
+        double ae = cabs(e), az = cabs(z);
+        if (!(ae > 0) || !(az > 0)) {
+            for (int a = 0; a < NPAR; a++)
+                P[a] = 0;
+            continue;
+        }
+        double c = creal(z) / az;
+        double sc = f->bmag[b] * sqrt(fmax(0.0, 0.5 * (1.0 + c)));
+        double kx = f->kx[f->bi[b]], ky = f->ky[f->bj[b]];
+        double J[NPAR] = {sc * kx,          sc * ky,       sc * kx * creal(q),
+                          sc * ky * creal(q), sc * cimag(q), -sc * bas[0],
+                          -sc * bas[1],     -sc * bas[2],  -sc * bas[3]};
+        double complex u = I * conj(e) / ae;   /* perpendicular to the model */
+        for (int a = 0; a < NPAR; a++)
+            P[a] = J[a] * u;
+    }
+}
+
+int binary_fit_sandwich(binary_fit *f, const double *th, const double *Mx, double *C)
+{
+    double A[NPAR * NPAR], g[NPAR], Ai[NPAR * NPAR], M[NPAR * NPAR];
+    binary_fit_cost(f, th, A, g);
+    for (int c = 0; c < NPAR; c++) {
+        double e[NPAR] = {0};
+        e[c] = 1;
+        memcpy(M, A, sizeof M);
+        if (!chol_solve(M, e, NPAR))
+            return 0;
+        for (int a = 0; a < NPAR; a++)
+            Ai[a * NPAR + c] = e[a];
+    }
+    for (int a = 0; a < NPAR; a++)
+        for (int b = 0; b < NPAR; b++) {
+            double s = 0;
+            for (int k = 0; k < NPAR; k++)
+                for (int l = 0; l < NPAR; l++)
+                    s += Ai[a * NPAR + k] * Mx[k * NPAR + l] * Ai[l * NPAR + b];
+            C[a * NPAR + b] = s;
+        }
+    return 1;
 }

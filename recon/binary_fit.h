@@ -30,6 +30,7 @@ typedef struct binary_fit {
     double complex *bs;      /* the image spectrum there */
     double complex *bmod;    /* the projected model (binary_fit_project) */
     double *bmag;            /* |bs| */
+    double complex *perp;    /* m x NPAR: binary_fit_perp */
     double *kx, *ky;         /* 2 pi f per column (nx) / row (h) */
     double complex *e1x, *e1y, *edx, *edy; /* workspace: phasors */
     int odd;                 /* 0: psi held at 0 (a sincos per frequency
@@ -72,5 +73,13 @@ void binary_fit_peak_cov(const binary_fit *f, int nv, const double H[3],
  * symmetric PSF P^: the model's own peaks are the fit's positions plus
  * the interpolated-peak bias. */
 void binary_fit_project(binary_fit *f, const double *th);
+
+/* f->perp[b NPAR + a] = J_a(b) i m_b, the Jacobian of the residual at
+ * kept frequency b times the unit m_b perpendicular to the model there:
+ * parameter a's perturbation of the data, as a spectrum. */
+void binary_fit_perp(binary_fit *f, const double *th);
+/* C = A^-1 Mx A^-1 with A = J^T J at th (the sandwich covariance for
+ * residuals of covariance Mx = J^T Sigma J); 0 when A is singular. */
+int binary_fit_sandwich(binary_fit *f, const double *th, const double *Mx, double *C);
 
 #endif

@@ -197,6 +197,56 @@ TEST(noise_matches_reported_errors)
     free(noisy);
 }
 
+/* Noise confined to a few pixels around the primary (white noise times a
+ * Gaussian envelope of 3 px sigma), like a reconstruction's artefacts: it
+ * is correlated over the whole spectrum, and the errors of the
+ * independent-frequency covariance are too small (here by ~4x in sep);
+ * the stated ones, from the sandwich covariance (binary.c, residual_cov),
+ * match the scatter. */
+TEST(compact_noise_errors)
+{
+    enum { NMC = 24 };
+    float *img = malloc(sizeof(float) * N * N);
+    float *noisy = malloc(sizeof(float) * N * N);
+    binary_plan *p = binary_plan_new(N, N, NULL);
+    mask *m = NULL;
+    CHECK(img && noisy && p && mask_named(&m, "nrm17", NULL) == SL_OK, "allocation");
+    double pa = 57.0, sep_px, dm = 1;
+    int rc = make_binary(m, 5, pa, dm, img, &sep_px);
+    mask_free(m);
+    CHECK(rc == SL_OK, "simulating");
+    int ipk = 0;
+    for (int i = 0; i < N * N; i++)
+        ipk = img[i] > img[ipk] ? i : ipk;
+    double pk = img[ipk], cx = ipk % N, cy = ipk / N;
+    rng r;
+    rng_init(&r, 29, 0);
+    double z2 = 0, z2w = 0, kmin = INFINITY;
+    for (int k = 0; k < NMC && rc == SL_OK; k++) {
+        for (int i = 0; i < N * N; i++) {
+            double dx = i % N - cx, dy = i / N - cy;
+            double env = exp(-(dx * dx + dy * dy) / (2 * 3.0 * 3.0));
+            noisy[i] = img[i] + (float)(2e-2 * pk * env * rng_normal(&r));
+        }
+        binary_result b;
+        if ((rc = binary_plan_measure(p, noisy, &b)) != SL_OK)
+            break;
+        double e = b.sep_px - sep_px;
+        z2 += e * e / (b.sep_err_px * b.sep_err_px) / NMC;
+        z2w += e * e * b.err_inflation / (b.sep_err_px * b.sep_err_px) / NMC;
+        kmin = fmin(kmin, b.err_inflation);
+    }
+    binary_plan_free(p);
+    free(img);
+    free(noisy);
+    CHECK(rc == SL_OK, "measuring failed");
+    printf("  compact noise: rms error/sigma sep %.2f (independent-frequency sigma: "
+           "%.2f), variance factor >= %.1f\n", sqrt(z2), sqrt(z2w), kmin);
+    CHECK(sqrt(z2) > 0.5 && sqrt(z2) < 2.0, "rms error/sigma %.2f", sqrt(z2));
+    CHECK(kmin > 2 && sqrt(z2w) > 2.0, "correlation not seen: factor %.2f, plain %.2f", kmin,
+          sqrt(z2w));
+}
+
 /* A single star is not a binary (its sidelobes and rings are not
  * companions: the fitted flux ratio is not significant); NaN pixels and
  * tiny images are refused with a message; the metrics_binary wrapper
@@ -242,5 +292,6 @@ TEST(single_star_and_bad_input)
 }
 
 TC_MAIN(TC_CASE(cophased_binaries_exact), TC_CASE(equal_binaries_flagged),
+        TC_CASE(compact_noise_errors),
         TC_CASE(noise_matches_reported_errors),
         TC_CASE(single_star_and_bad_input))

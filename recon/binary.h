@@ -85,11 +85,12 @@
  * photon-biased dm, its PA at 5 lambda/D) are not in them.
  *
  * Limits.  A reconstruction's transfer function is only symmetric if its
- * phases are right.  Where a speckle reconstruction half-symmetrises the
- * object (a ghost of the companion at -d, from poor phases), the ghost is
- * indistinguishable from a PSF feature and r comes out low: TSM-Fourier
- * at 1000 photons, 60 frames of 96^2, dm 1 measures dm 2.26 (the peak
- * heights say 1.5).
+ * phases are right.  Phases that are systematically shrunk towards the
+ * symmetric (zero closure phase) solution make r come out low: TSM's raw
+ * bispectrum at 1000 photons reads a dm 1 companion as dm 1.5-2.0 (tsm.h,
+ * Bias).  Random phase errors turn the mask's bright sidelobes
+ * asymmetric, which the fit can take for a faint companion (a dm 2.5-3.5
+ * "companion" 7-8 px from a reconstructed point source, README).
  *
  * binary_plan holds double-precision FFTW plans (FFTW_ESTIMATE: one
  * measurement per image, measuring plans would cost more) and every

@@ -172,6 +172,11 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
         fprintf(stderr, "specklab recon: %s\n", e.msg);
         return 1;
     }
+    const char *ph;
+    if (o.tsm_corrected_phases && cube_meta_get_str(&r.meta, "RECTPHAS", &ph) == SL_OK &&
+        strcmp(ph, "corrected") != 0)
+        fprintf(stderr, "specklab recon: warning: --tsm-phases corrected needs photon "
+                "statistics (header SIMPHOT or --photons); the phases are raw\n");
     seq img = {r.width, r.height, 1, r.image};
     int status = 0;
     if (cube_write(a->out, &img, &r.meta, &e) != SL_OK ||

@@ -107,6 +107,18 @@ static void set_phasors(binary_fit *f, const double *th)
     phasors(f->edy, f->ky, f->h, th[3]);
 }
 
+/* The residual's Jacobian at kept frequency b: sc = |I| cos(phi/2), q and
+ * bas from model_conj (see binary_fit_cost for the derivatives). */
+static void jac_row(const binary_fit *f, int b, double sc, double complex q,
+                    const double bas[4], double J[NPAR])
+{
+    double kx = f->kx[f->bi[b]], ky = f->ky[f->bj[b]];
+    J[0] = sc * kx, J[1] = sc * ky;
+    J[2] = sc * kx * creal(q), J[3] = sc * ky * creal(q), J[4] = sc * cimag(q);
+    for (int k = 0; k < 4; k++)
+        J[5 + k] = -sc * bas[k];
+}
+
 /* Residual 2 |I| sin(phi/2) (phi wrapped to (-pi, pi]; sin(phi/2) from
  * cos(phi) by the half-angle formulas, no atan2).  Derivatives: |I|
  * cos(phi/2) d phi, with d phi/d x1 = k, d phi/d d = k Re q, d phi/d ln r
@@ -133,11 +145,8 @@ double binary_fit_cost(binary_fit *f, const double *th, double *A,
         cost += res * res;
         if (!A)
             continue;
-        double sc = mag * sqrt(fmax(0.0, 0.5 * (1.0 + c)));
-        double kx = f->kx[f->bi[b]], ky = f->ky[f->bj[b]];
-        double J[NPAR] = {sc * kx,          sc * ky,       sc * kx * creal(q),
-                          sc * ky * creal(q), sc * cimag(q), -sc * bas[0],
-                          -sc * bas[1],     -sc * bas[2],  -sc * bas[3]};
+        double J[NPAR];
+        jac_row(f, b, mag * sqrt(fmax(0.0, 0.5 * (1.0 + c))), q, bas, J);
         for (int a = 0; a < NPAR; a++) {
             g[a] += J[a] * res;
             for (int e = 0; e <= a; e++)
@@ -353,12 +362,8 @@ void binary_fit_perp(binary_fit *f, const double *th)
                 P[a] = 0;
             continue;
         }
-        double c = creal(z) / az;
-        double sc = f->bmag[b] * sqrt(fmax(0.0, 0.5 * (1.0 + c)));
-        double kx = f->kx[f->bi[b]], ky = f->ky[f->bj[b]];
-        double J[NPAR] = {sc * kx,          sc * ky,       sc * kx * creal(q),
-                          sc * ky * creal(q), sc * cimag(q), -sc * bas[0],
-                          -sc * bas[1],     -sc * bas[2],  -sc * bas[3]};
+        double J[NPAR];
+        jac_row(f, b, f->bmag[b] * sqrt(fmax(0.0, 0.5 * (1.0 + creal(z) / az))), q, bas, J);
         double complex u = I * conj(e) / ae;   /* perpendicular to the model */
         for (int a = 0; a < NPAR; a++)
             P[a] = J[a] * u;

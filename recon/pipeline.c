@@ -396,7 +396,11 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
     to.cutoff_cyc_px = o->cutoff_cyc_px;
     to.inverse = (tsm_inverse)o->tsm_inverse;
-    if (o->tsm_corrected_phases) {
+    /* Corrected phases need the photon statistics (the gain of Wirnitzer's
+     * terms); without them the phases stay raw, with their own weights,
+     * and RECTPHAS says so. */
+    int corrected = o->tsm_corrected_phases && photons > 0;
+    if (corrected) {
         to.bispec_bias_phase = 1;
         to.weight = TSM_WEIGHT_SNR2;
     }
@@ -443,7 +447,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
     cube_meta_set_str(m, "RECTINV", to.inverse == TSM_INV_ITER ? "iterative" : "fbp",
                       "TSM inverse: filtered back projection or iterative");
-    cube_meta_set_str(m, "RECTPHAS", photons > 0 && o->tsm_corrected_phases ? "corrected" : "raw",
+    cube_meta_set_str(m, "RECTPHAS", corrected ? "corrected" : "raw",
                       "TSM phases: raw or photon-bias-corrected bispectrum");
     double arc, ext;
     tsm_arc(t, &arc, &ext);

@@ -63,6 +63,38 @@ static int write_sim(const char *path, const char *scene_name, double photons,
     return rc;
 }
 
+/* Simulated cubes in a fresh temporary directory, removed by tmp_clean:
+ * tmp_sim adds one (path[n++]); SL_OK or the error. */
+typedef struct tmp_cubes {
+    char dir[24], path[2][64];
+    int n;
+} tmp_cubes;
+
+static int tmp_sim(tmp_cubes *cubes, const char *scene_name, double photons, uint64_t seed)
+{
+    int i = cubes->n;
+    if (i >= 2)
+        return SL_EINVAL;
+    if (i == 0) {
+        snprintf(cubes->dir, sizeof cubes->dir, "/tmp/sl_pipeXXXXXX");
+        if (!mkdtemp(cubes->dir))
+            return SL_EIO;
+    }
+    char dir[sizeof cubes->dir];
+    memcpy(dir, cubes->dir, sizeof dir);
+    snprintf(cubes->path[i], sizeof cubes->path[i], "%s/%d.fits", dir, i);
+    cubes->n++;
+    return write_sim(cubes->path[i], scene_name, photons, seed, 1);
+}
+
+static void tmp_clean(tmp_cubes *cubes)
+{
+    for (int i = 0; i < cubes->n; i++)
+        unlink(cubes->path[i]);
+    if (cubes->n > 0)
+        rmdir(cubes->dir);
+}
+
 /* The binary is 0.45" at PA 250 deg, dm 1: measured within the issue's
  * bounds (0.1 px, 0.5 deg, 0.1 mag) by direct; TSM within 0.1 px and 0.5
  * deg, dm within 0.15 (read 1.08 Fourier, 1.13 spatial; 1.20-1.21 before
@@ -96,20 +128,18 @@ static void check_method(tc *t, const char *cube, const char *ref, int method,
 
 TEST(every_method_measures_the_binary)
 {
-    char dir[] = "/tmp/sl_pipeXXXXXX", cube[64], ref[64];
-    CHECK(mkdtemp(dir), "mkdtemp");
-    snprintf(cube, sizeof cube, "%s/bin.fits", dir);
-    snprintf(ref, sizeof ref, "%s/ref.fits", dir);
-    CHECK(write_sim(cube, "binary", 0, 1, 1) == SL_OK, "simulating");
-    CHECK(write_sim(ref, "point", 0, 77, 1) == SL_OK, "simulating the reference");
-    check_method(t, cube, ref, PIPE_DIRECT, 0.1, 0.5, 0.1);
-    if (!t->failed)
-        check_method(t, cube, ref, PIPE_TSM_FOURIER, 0.1, 0.5, 0.15);
-    if (!t->failed)
-        check_method(t, cube, ref, PIPE_TSM, 0.1, 0.5, 0.15);
-    unlink(cube);
-    unlink(ref);
-    rmdir(dir);
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "binary", 0, 1);
+    if (rc == SL_OK)
+        rc = tmp_sim(&cubes, "point", 0, 77);
+    if (rc == SL_OK)
+        check_method(t, cubes.path[0], cubes.path[1], PIPE_DIRECT, 0.1, 0.5, 0.1);
+    if (rc == SL_OK && !t->failed)
+        check_method(t, cubes.path[0], cubes.path[1], PIPE_TSM_FOURIER, 0.1, 0.5, 0.15);
+    if (rc == SL_OK && !t->failed)
+        check_method(t, cubes.path[0], cubes.path[1], PIPE_TSM, 0.1, 0.5, 0.15);
+    tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating the binary and the reference");
 }
 
 /* Photon-counting frames (1000 per frame, the lab level): the header's
@@ -123,18 +153,18 @@ TEST(every_method_measures_the_binary)
  * (direct) and 1.3 (TSM) here. */
 TEST(photon_counting_cube)
 {
-    char dir[] = "/tmp/sl_pipeXXXXXX", cube[64], ref[64];
-    CHECK(mkdtemp(dir), "mkdtemp");
-    snprintf(cube, sizeof cube, "%s/bin.fits", dir);
-    snprintf(ref, sizeof ref, "%s/ref.fits", dir);
-    CHECK(write_sim(cube, "binary", 1000, 3, 1) == SL_OK, "simulating");
-    CHECK(write_sim(ref, "point", 1000, 78, 1) == SL_OK, "simulating the reference");
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "binary", 1000, 3);
+    if (rc == SL_OK)
+        rc = tmp_sim(&cubes, "point", 1000, 78);
+    if (rc != SL_OK)
+        tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating the binary and the reference");
+    const char *cube = cubes.path[0], *ref = cubes.path[1];
     check_method(t, cube, ref, PIPE_DIRECT, 0.25, 2, 0.7);
     if (!t->failed)
         check_method(t, cube, ref, PIPE_TSM_FOURIER, 0.25, 2, 1.3);
-    unlink(cube);
-    unlink(ref);
-    rmdir(dir);
+    tmp_clean(&cubes);
 }
 
 /* tsm-fourier on cube with the given options; the header's keyword key
@@ -182,18 +212,43 @@ static double tsm_dm(const char *cube, int corrected, char *phases, size_t n)
 
 TEST(tsm_corrected_phases)
 {
-    char dir[] = "/tmp/sl_pipeXXXXXX", cube[64];
-    CHECK(mkdtemp(dir), "mkdtemp");
-    snprintf(cube, sizeof cube, "%s/bin.fits", dir);
-    CHECK(write_sim(cube, "binary", 1e4, 3, 1) == SL_OK, "simulating");
-    char kr[16], kc[16];
-    double dm_raw = tsm_dm(cube, 0, kr, sizeof kr), dm_cor = tsm_dm(cube, 1, kc, sizeof kc);
-    unlink(cube);
-    rmdir(dir);
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "binary", 1e4, 3);
+    char kr[16] = "", kc[16] = "";
+    double dm_raw = NAN, dm_cor = NAN;
+    if (rc == SL_OK) {
+        dm_raw = tsm_dm(cubes.path[0], 0, kr, sizeof kr);
+        dm_cor = tsm_dm(cubes.path[0], 1, kc, sizeof kc);
+    }
+    tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating");
     printf("    1e4 photons, dm 1: raw phases %.3f, corrected %.3f\n", dm_raw, dm_cor);
     CHECK(!strcmp(kr, "raw") && !strcmp(kc, "corrected"), "RECTPHAS %s / %s", kr, kc);
     CHECK(fabs(dm_cor - 1) < 0.25, "corrected: dm %.3f (NAN: binary lost)", dm_cor);
     CHECK(dm_raw - dm_cor > 0.15, "raw %.3f vs corrected %.3f: no gain", dm_raw, dm_cor);
+}
+
+/* Without photon statistics (no SIMPHOT: camera data) corrected phases
+ * cannot be had: the request changes nothing, bit for bit, and the header
+ * says the phases are raw. */
+TEST(tsm_corrected_phases_need_photons)
+{
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "binary", 0, 4);
+    pipeline_result r[2];
+    char k[2][16];
+    int ok = 0, run = 0;
+    for (; rc == SL_OK && run < 2; run++)
+        rc = run_tsmf(cubes.path[0], 36, 0, run, "RECTPHAS", k[run], sizeof k[run], &r[run]);
+    if (rc == SL_OK)
+        ok = r[0].width == r[1].width && r[0].height == r[1].height &&
+             !memcmp(r[0].image, r[1].image, sizeof(float) * r[0].width * r[0].height);
+    for (int i = 0; i < run - (rc != SL_OK); i++)
+        pipeline_result_clear(&r[i]);
+    tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating or reconstructing");
+    CHECK(!strcmp(k[0], "raw") && !strcmp(k[1], "raw"), "RECTPHAS %s / %s", k[0], k[1]);
+    CHECK(ok, "the image changed with --tsm-phases corrected and no photon statistics");
 }
 
 /* TSM's iterative inverse (tsm_inverse = TSM_INV_ITER, `recon
@@ -217,15 +272,16 @@ static double six_star_c(const char *cube, int inverse, char *inv, size_t n)
 
 TEST(few_angles_iterative_inverse)
 {
-    char dir[] = "/tmp/sl_pipeXXXXXX", cube[64];
-    CHECK(mkdtemp(dir), "mkdtemp");
-    snprintf(cube, sizeof cube, "%s/six.fits", dir);
-    CHECK(write_sim(cube, "six-star", 0, 2, 1) == SL_OK, "simulating");
-    char kf[16], ki[16];
-    double c_fbp = six_star_c(cube, TSM_INV_AUTO, kf, sizeof kf);
-    double c_it = six_star_c(cube, TSM_INV_ITER, ki, sizeof ki);
-    unlink(cube);
-    rmdir(dir);
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "six-star", 0, 2);
+    char kf[16] = "", ki[16] = "";
+    double c_fbp = NAN, c_it = NAN;
+    if (rc == SL_OK) {
+        c_fbp = six_star_c(cubes.path[0], TSM_INV_AUTO, kf, sizeof kf);
+        c_it = six_star_c(cubes.path[0], TSM_INV_ITER, ki, sizeof ki);
+    }
+    tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating");
     printf("    six-star, 18 angles: c %.3f FBP, %.3f iterative\n", c_fbp, c_it);
     CHECK(!strcmp(kf, "fbp") && !strcmp(ki, "iterative"), "RECTINV %s / %s", kf, ki);
     CHECK(c_it > 0.78 && c_it > c_fbp + 0.15, "c %.3f iterative vs %.3f FBP", c_it, c_fbp);
@@ -245,5 +301,6 @@ TEST(bad_inputs_are_named)
 }
 
 TC_MAIN(TC_CASE(every_method_measures_the_binary), TC_CASE(photon_counting_cube),
-        TC_CASE(tsm_corrected_phases), TC_CASE(few_angles_iterative_inverse),
+        TC_CASE(tsm_corrected_phases), TC_CASE(tsm_corrected_phases_need_photons),
+        TC_CASE(few_angles_iterative_inverse),
         TC_CASE(bad_inputs_are_named))

@@ -55,6 +55,8 @@ TEST(extent_analytic)
     CHECK(isinf(tsm_arc_cap(0, ns)), "no extent: no cap");
 }
 
+/* Noiseless frames of a binary sep_px apart at PA 30 through the 17-hole
+ * mask (Nyquist sampling of its extent E: lambda / 2E per pixel). */
 static float *sim_binary(int n, int nfr, double sep_px, double dm)
 {
     sl_err e;
@@ -68,15 +70,9 @@ static float *sim_binary(int n, int nfr, double sep_px, double dm)
     o.fftw_flags = FFTW_ESTIMATE;
     float *fr = malloc(sizeof(float) * n * n * nfr);
     int rc = fr ? mask_named(&m, "nrm17", &e) : SL_ENOMEM;
-    if (rc == SL_OK)     /* a provisional scene sizes the plate scale */
-        rc = scene_binary(&sc, 1, 30, dm, &e);
+    double px_arcsec = rc == SL_OK ? o.wavelength_m / (2 * mask_extent_m(m)) * 180 * 3600 / M_PI : 0;
     if (rc == SL_OK)
-        rc = sim_new(&s, &o, m, sc, &e);
-    double scale = rc == SL_OK ? sim_plate_scale_arcsec(s) : 0;
-    sim_free(s), scene_free(sc);
-    s = NULL, sc = NULL;
-    if (rc == SL_OK)
-        rc = scene_binary(&sc, sep_px * scale, 30, dm, &e);
+        rc = scene_binary(&sc, sep_px * px_arcsec, 30, dm, &e);
     if (rc == SL_OK)
         rc = sim_new(&s, &o, m, sc, &e);
     for (int k = 0; rc == SL_OK && k < nfr; k++)

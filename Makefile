@@ -274,11 +274,11 @@ FUZZ_FITS_SRC  := recon/cube.c recon/cube_guard.c recon/cube_write.c recon/seq.c
 FUZZ_MASK_SRC  := recon/mask.c recon/mask_gen.c recon/rng.c recon/status.c
 FUZZ_SCENE_SRC := recon/scene.c recon/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/status.c
-FUZZ_CONFIG_SRC := daemon/config.c recon/status.c
+FUZZ_CONFIG_SRC := daemon/config.c recon/status.c recon/pipeline_skips.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
+                     daemon/config.c recon/pipeline_skips.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
 $(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/cube.h recon/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h

@@ -254,6 +254,14 @@ static void fill_meta(acq *a, cube_meta *m)
     cube_meta_set_num(m, "BINY", a->cf.bin_y, "binning y");
     if (isfinite(a->cf.gain_db))
         cube_meta_set_num(m, "GAINDB", a->cf.gain_db, "[dB] camera gain");
+    if (isfinite(cfg->gain_e_per_adu)) {
+        /* GenICam Gain amplifies: 20 log10 more ADU per electron */
+        double g = cfg->gain_e_per_adu *
+                   (isfinite(a->cf.gain_db) ? pow(10.0, -a->cf.gain_db / 20.0) : 1.0);
+        cube_meta_set_num(m, "GAIN", g, "[e-/adu] detector gain");
+    }
+    if (isfinite(cfg->read_noise_e))
+        cube_meta_set_num(m, "RDNOISE", cfg->read_noise_e, "[e-] read noise rms");
     if (isfinite(a->cf.frame_rate_hz))
         cube_meta_set_num(m, "FRATE", a->cf.frame_rate_hz, "[Hz] frame rate setting");
 }

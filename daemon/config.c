@@ -6,6 +6,7 @@
  * whichever layer set it.
  */
 #include "config.h"
+#include "pipeline.h"
 
 #include <errno.h>
 #include <glib.h>
@@ -31,6 +32,8 @@ static const char defaults_text[] =
     "wavelength_nm=633\n"
     "lost_timeout_s=10\n"
     "max_failed_frames=0\n"
+    "# gain_e_per_adu=1       (at Gain 0 dB; unset: unknown, photon bias from the floor)\n"
+    "# read_noise_e=2         (unset: unknown)\n"
     "\n"
     "[stage]\n"
     "backend=tcp\n"
@@ -57,6 +60,10 @@ static const char defaults_text[] =
     "# socket=./var/specklabd.sock (empty: DATA_DIR/specklabd.sock)\n"
     "reconstruct=tsm-fourier\n"
     "projections=0\n"
+    "# TSM phases: corrected (photon-bias-corrected, when cubes carry GAIN) or raw\n"
+    "tsm_phases=corrected\n"
+    "# work a scene does not need: reject,crop,support,angles | all | none\n"
+    "skips=reject,crop,support\n"
     "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
     "fftw=measure\n"
     "max_clients=64\n"
@@ -71,12 +78,13 @@ const char *config_defaults_text(void)
 static const char *const known_keys[][16] = {
     {"camera", "backend", "address", "exposure_us", "pixel_format",
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
-     "lost_timeout_s", "max_failed_frames", NULL},
+     "lost_timeout_s", "max_failed_frames", "gain_e_per_adu", "read_noise_e",
+     NULL},
     {"stage", "backend", "address", "unit", "device", "baud",
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
     {"paths", "data_dir", "catalog", NULL},
-    {"daemon", "socket", "reconstruct", "projections", "fftw", "max_clients",
+    {"daemon", "socket", "reconstruct", "projections", "tsm_phases", "skips", "fftw", "max_clients",
      "catalog_busy_timeout_ms", NULL},
 };
 
@@ -203,6 +211,20 @@ static int get_num(GKeyFile *kf, const char *g, const char *k, double def,
                        "%g..%g", g, k, v, lo, hi);
     else
         *out = x;
+    g_free(v);
+    return rc;
+}
+
+/* A two-way choice: *out = 1 for yes (also the default), 0 for no. */
+static int get_flag(GKeyFile *kf, const char *g, const char *k, const char *yes,
+                    const char *no, int *out, sl_err *err)
+{
+    char *v = NULL;
+    int rc = get_str(kf, g, k, yes, &v, err);
+    *out = rc == SL_OK && !strcmp(v, yes);
+    if (rc == SL_OK && !*out && strcmp(v, no))
+        rc = sl_seterr(err, SL_EINVAL, "config [%s] %s = '%s': expected %s or %s", g, k, v,
+                       yes, no);
     g_free(v);
     return rc;
 }
@@ -344,7 +366,9 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
         (rc = get_num(kf, "camera", "wavelength_nm", 633, 100, 30000, &c->wavelength_m, err)) ||
         (rc = get_num(kf, "camera", "lost_timeout_s", 10, 0.5, 3600, &c->lost_timeout_s, err)) ||
         (rc = get_int(kf, "camera", "max_failed_frames", 0, 0, INT_MAX, &c->max_failed_frames,
-                      err)))
+                      err)) ||
+        (rc = get_num(kf, "camera", "gain_e_per_adu", NAN, 1e-4, 1e4, &c->gain_e_per_adu, err)) ||
+        (rc = get_num(kf, "camera", "read_noise_e", NAN, 0, 1e4, &c->read_noise_e, err)))
         return rc;
     c->wavelength_m *= 1e-9;
     if ((rc = get_str(kf, "stage", "backend", "tcp", &c->stage_backend, err)) ||
@@ -382,14 +406,14 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
     if (!config_method_valid(c->reconstruct))
         return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected tsm, "
                          "tsm-fourier, direct or none", c->reconstruct);
-    if ((rc = get_str(kf, "daemon", "fftw", "measure", &s, err)) != SL_OK) {
-        g_free(s);
+    if ((rc = get_flag(kf, "daemon", "tsm_phases", "corrected", "raw",
+                       &c->tsm_corrected_phases, err)) ||
+        (rc = get_flag(kf, "daemon", "fftw", "measure", "estimate", &c->fftw_measure, err)))
         return rc;
-    }
-    c->fftw_measure = !strcmp(s, "measure");
-    if (!c->fftw_measure && strcmp(s, "estimate"))
-        rc = sl_seterr(err, SL_EINVAL, "config [daemon] fftw = '%s': expected measure or "
-                       "estimate", s);
+    if ((rc = get_str(kf, "daemon", "skips", "reject,crop,support", &s, err)) == SL_OK &&
+        pipeline_skips_parse(s, &c->skips) != SL_OK)
+        rc = sl_seterr(err, SL_EINVAL, "config [daemon] skips = '%s': expected a list of "
+                       "reject, crop, support, angles, or all, none", s);
     g_free(s);
     if (rc)
         return rc;

@@ -6,13 +6,13 @@
  * Groups and keys (daemon/specklabd.conf.example documents each):
  *   [camera]  backend address exposure_us pixel_format frame_rate_hz roi
  *             buffers plate_scale_arcsec wavelength_nm lost_timeout_s
- *             max_failed_frames
+ *             max_failed_frames gain_e_per_adu read_noise_e
  *   [stage]   backend address unit device baud move_timeout_ms settle_ms
  *             response_timeout_ms call_timeout_ms
  *   [screens] SLOT=NAME ...        (the phase-screen wheel)
  *   [masks]   SLOT=NAME[:FILE] ... (built-in "full"/"nrm17", or a mask file)
  *   [paths]   data_dir catalog
- *   [daemon]  socket reconstruct projections fftw max_clients
+ *   [daemon]  socket reconstruct projections tsm_phases skips fftw max_clients
  *             catalog_busy_timeout_ms
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
@@ -45,6 +45,12 @@ typedef struct config {
     double lost_timeout_s;      /* no frame for this long: camera lost */
     int max_failed_frames;      /* damaged frames before a run fails;
                                  * <= 0: max(100, frames requested) */
+    /* The detector's photon statistics, written as GAIN [e-/ADU, scaled
+     * by the camera's Gain setting] and RDNOISE [e-] into every cube so
+     * that the reconstruction removes the photon bias exactly
+     * (recon/pipeline.h).  NaN: unknown, keywords not written. */
+    double gain_e_per_adu;      /* at camera Gain 0 dB */
+    double read_noise_e;
     /* [stage] */
     char *stage_backend, *stage_host, *stage_device;
     int stage_port, stage_unit, stage_baud;
@@ -58,6 +64,9 @@ typedef struct config {
     char *data_dir, *catalog, *socket;
     char *reconstruct;          /* "tsm", "tsm-fourier", "direct", "none" */
     int projections;            /* TSM angles; 0: the pipeline's default */
+    int skips;                  /* pipeline_opts.skips (PIPE_SKIP_* bits) */
+    int tsm_corrected_phases;   /* 1: pipeline_opts.tsm_corrected_phases
+                                 * (effective when cubes carry GAIN) */
     int fftw_measure;           /* 1: FFTW_MEASURE with DATA_DIR/fftw-wisdom */
     int max_clients;
     int catalog_busy_timeout_ms; /* a write waits this long for another

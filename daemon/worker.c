@@ -132,6 +132,11 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
      * ~1 s per new size to time: the wisdom file (loaded when the thread
      * starts, saved after each job) pays that once per size and machine. */
     po.fftw_measure = w->cfg->fftw_measure;
+    po.tsm_corrected_phases = w->cfg->tsm_corrected_phases;
+    /* Camera frames carry read noise on every pixel; the crop to the
+     * speckle cloud keeps it out (a dm 2 companion at 1e4 photons, 2 e-:
+     * lost by TSM on the whole 200^2 frame, found on the crop). */
+    po.skips = w->cfg->skips;
     catalog_recon_init(rec);
     rec->started_ms = catalog_now_ms();
     if ((rc = pipeline_run(&cube, 1, &po, &res, e)) != SL_OK)
@@ -156,8 +161,17 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     json_builder_begin_object(b);
     proto_add_str(b, "method", j->method);
     if (po.method != PIPE_DIRECT)   /* pipeline.h: 0 means 180 */
+    {
         proto_add_int(b, "projections", po.nangles > 0 ? po.nangles : 180);
+        /* what ran: corrected needs the cube's photon statistics */
+        const char *ph = NULL;
+        cube_meta_get_str(&res.meta, "RECTPHAS", &ph);
+        proto_add_str(b, "tsm_phases", ph ? ph : "raw");
+    }
     proto_add_bool(b, "prep", po.prep);
+    char skips[64];
+    pipeline_skips_name(po.skips, skips, sizeof skips);
+    proto_add_str(b, "skips", skips);
     proto_add_str(b, "fftw", po.fftw_measure ? "measure" : "estimate");
     json_builder_end_object(b);
     o->params = json_text(b);

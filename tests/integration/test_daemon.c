@@ -22,7 +22,8 @@ static int has(const char *hay, const char *needle)
     return hay && needle && strstr(hay, needle) != NULL;
 }
 
-BENCH_TEST(full_run, 120, NULL, NULL)
+/* The fake camera's detector (its defaults): 1 e-/ADU, 2 e- read noise. */
+BENCH_TEST(full_run, 120, NULL, "[camera]\ngain_e_per_adu=1\nread_noise_e=2\n")
 {
     dc *c = bench_client(b);
     CHECK(c, "cannot connect to %s", b->sock);
@@ -79,14 +80,18 @@ BENCH_TEST(full_run, 120, NULL, NULL)
           n3, rows);
     fitsfile *f = NULL;
     int s = 0;
-    double scale = 0;
+    double scale = 0, gain = 0, rdn = 0;
     fits_open_diskfile(&f, file, READONLY, &s);
     fits_read_key(f, TDOUBLE, "PLTSCALE", &scale, NULL, &s);
+    fits_read_key(f, TDOUBLE, "GAIN", &gain, NULL, &s);
+    fits_read_key(f, TDOUBLE, "RDNOISE", &rdn, NULL, &s);
     if (f) {
         int s2 = 0;
         fits_close_file(f, &s2);
     }
     CHECK(s == 0 && fabs(scale - DEFAULT_PLTSCALE) < 1e-12, "PLTSCALE %g (cfitsio %d)", scale, s);
+    /* the fake camera reports Gain 0 dB: GAIN is the configured value */
+    CHECK(gain == 1 && rdn == 2, "GAIN %g, RDNOISE %g: configured 1, 2", gain, rdn);
 
     JsonNode *rec = jget(r, "result.reconstructions.0");
     CHECK(rec && has(js(rec, "method"), "direct") && !jget(r, "result.reconstructions.1"),
@@ -96,6 +101,23 @@ BENCH_TEST(full_run, 120, NULL, NULL)
           sep, SEP_ARCSEC);
     CHECK(fabs(pa - PA_DEG) <= 1.0, "PA %.3f deg, configured %.1f", pa, PA_DEG);
     CHECK(fabs(jd(rec, "sep_px") * DEFAULT_PLTSCALE - sep) < 1e-9, "sep_px and sep_arcsec disagree");
+    CHECK(has(js(rec, "params.skips"), "reject,crop,support"), "params %s",
+          jtext(jget(rec, "params")));
+    /* Photons from GAIN and the frames' flux: the fake renders 1000
+     * photons per ms for the default 10 ms; the 64x64 sensor loses some
+     * of the wings. */
+    double phot = 0;
+    char src[FLEN_VALUE] = "";
+    s = 0;
+    fits_open_diskfile(&f, js(rec, "fits"), READONLY, &s);
+    fits_read_key(f, TDOUBLE, "RECPHOT", &phot, NULL, &s);
+    fits_read_key(f, TSTRING, "RECPHSRC", src, NULL, &s);
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, &s2);
+    }
+    CHECK(s == 0 && !strcmp(src, "GAIN") && phot > 6000 && phot < 10500,
+          "RECPHOT %g from %s (cfitsio %d): expected 6000..10500 from GAIN", phot, src, s);
     CHECK(g_file_test(js(rec, "fits"), G_FILE_TEST_IS_REGULAR) &&
               g_file_test(js(rec, "png"), G_FILE_TEST_IS_REGULAR) &&
               g_str_has_prefix(js(rec, "fits"), b->data),
@@ -245,6 +267,10 @@ BENCH_TEST(queue_and_two_clients, 150, NULL, NULL)
               has(js(r, "result.reconstructions.0.method"), "tsm") &&
               !jget(r, "result.reconstructions.1"),
           "A after on-demand reconstruction: %s", jtext(r));
+    /* [daemon] tsm_phases = corrected by default, but this bench's cubes
+     * carry no GAIN: the phases that ran were raw, and params say so. */
+    CHECK(has(js(r, "result.reconstructions.0.params.tsm_phases"), "raw"),
+          "params without GAIN: %s", jtext(jget(r, "result.reconstructions.0.params")));
     r = keep(b, dc_call(a, "runs", "{\"state\": \"aborted\"}", 5));
     CHECK(jok(r) && has(js(r, "result.runs.0.uuid"), uc) && !jget(r, "result.runs.1") &&
               has(js(r, "result.runs.0.exit_reason"), "aborted by request"),

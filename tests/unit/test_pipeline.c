@@ -14,9 +14,12 @@
 
 #define N 96
 
-/* Write a simulated cube (and its cophased image) to path. */
+/* Write a simulated cube (and its cophased image) to path.  Photon
+ * statistics go in as the simulator's SIMPHOT/SIMGAIN, or with camera_hdr
+ * as a camera's GAIN alone, as specklabd writes them (2 e-/ADU: the
+ * frames are the photon counts halved). */
 static int write_sim(const char *path, const char *scene_name, double photons,
-                     uint64_t seed, int turbulence)
+                     uint64_t seed, int turbulence, int camera_hdr)
 {
     sl_err e;
     mask *m = NULL;
@@ -39,7 +42,11 @@ static int write_sim(const char *path, const char *scene_name, double photons,
     cube_meta md;
     cube_meta_init(&md);
     md.plate_scale_arcsec = rc == SL_OK ? sim_plate_scale_arcsec(s) : 0;
-    if (photons > 0) {
+    /* the camera: 2 e- per ADU, so ADU = photons / 2 */
+    float adu = photons > 0 && camera_hdr ? 0.5f : 1.0f;
+    if (photons > 0 && camera_hdr) {
+        cube_meta_set_num(&md, "GAIN", 1 / adu, NULL);
+    } else if (photons > 0) {
         cube_meta_set_num(&md, "SIMPHOT", photons, NULL);
         cube_meta_set_num(&md, "SIMGAIN", 1, NULL);
     }
@@ -47,8 +54,11 @@ static int write_sim(const char *path, const char *scene_name, double photons,
         rc = cube_writer_open(&w, path, N, N, -32, &md, &e);
     float *f = malloc(sizeof(float) * N * N);
     for (int k = 0; rc == SL_OK && k < o.nframes; k++)
-        if ((rc = sim_frame(s, k, f)) == SL_OK)
+        if ((rc = sim_frame(s, k, f)) == SL_OK) {
+            for (int i = 0; adu != 1 && i < N * N; i++)
+                f[i] *= adu;
             rc = cube_writer_append(w, f);
+        }
     if (rc == SL_OK && (rc = sim_cophased(s, f)) == SL_OK)
         rc = cube_writer_add_image(w, "COPHASED", f, N, N, NULL);
     if (rc == SL_OK)
@@ -68,6 +78,7 @@ static int write_sim(const char *path, const char *scene_name, double photons,
 typedef struct tmp_cubes {
     char dir[24], path[2][64];
     int n;
+    int camera_hdr;   /* the next tmp_sim writes GAIN, not SIMPHOT */
 } tmp_cubes;
 
 static int tmp_sim(tmp_cubes *cubes, const char *scene_name, double photons, uint64_t seed)
@@ -84,7 +95,7 @@ static int tmp_sim(tmp_cubes *cubes, const char *scene_name, double photons, uin
     memcpy(dir, cubes->dir, sizeof dir);
     snprintf(cubes->path[i], sizeof cubes->path[i], "%s/%d.fits", dir, i);
     cubes->n++;
-    return write_sim(cubes->path[i], scene_name, photons, seed, 1);
+    return write_sim(cubes->path[i], scene_name, photons, seed, 1, cubes->camera_hdr);
 }
 
 static void tmp_clean(tmp_cubes *cubes)
@@ -251,6 +262,47 @@ TEST(tsm_corrected_phases_need_photons)
     CHECK(ok, "the image changed with --tsm-phases corrected and no photon statistics");
 }
 
+/* Camera cubes carry the detector's gain (GAIN, e-/ADU, written by
+ * specklabd from [camera] gain_e_per_adu) and no photon count: the
+ * pipeline measures the mean flux of the cleaned frames and divides.  The
+ * same frames with the simulator's SIMPHOT/SIMGAIN and with GAIN alone
+ * must give the same photon count (to the Poisson scatter of the mean
+ * and what prep takes as sky), corrected TSM phases on both, and the same
+ * dm. */
+TEST(camera_gain_gives_photon_statistics)
+{
+    tmp_cubes cubes = {0};
+    int rc = tmp_sim(&cubes, "binary", 1e4, 3);
+    cubes.camera_hdr = 1;
+    if (rc == SL_OK)
+        rc = tmp_sim(&cubes, "binary", 1e4, 3);
+    double dm[2] = {NAN, NAN}, phot[2] = {NAN, NAN};
+    char ph[2][16] = {"", ""}, src[2][16] = {"", ""};
+    for (int i = 0; rc == SL_OK && i < 2; i++) {
+        pipeline_result r;
+        binary_result b;
+        const char *k;
+        if ((rc = run_tsmf(cubes.path[i], 180, 0, 1, "RECTPHAS", ph[i], sizeof ph[i], &r)) != SL_OK)
+            break;
+        cube_meta_get_num(&r.meta, "RECPHOT", &phot[i]);
+        if (cube_meta_get_str(&r.meta, "RECPHSRC", &k) == SL_OK)
+            snprintf(src[i], sizeof src[i], "%s", k);
+        if (metrics_binary(r.image, r.width, r.height, &b) == SL_OK)
+            dm[i] = b.dm_mag;
+        pipeline_result_clear(&r);
+    }
+    tmp_clean(&cubes);
+    CHECK(rc == SL_OK, "simulating or reconstructing");
+    printf("    SIMPHOT: %.0f photons, dm %.3f; GAIN: %.0f photons, dm %.3f\n",
+           phot[0], dm[0], phot[1], dm[1]);
+    CHECK(!strcmp(src[0], "SIMPHOT") && !strcmp(src[1], "GAIN"), "RECPHSRC %s / %s",
+          src[0], src[1]);
+    CHECK(fabs(phot[1] / 1e4 - 1) < 0.03, "photons from GAIN and the flux: %.0f, truth 1e4",
+          phot[1]);
+    CHECK(!strcmp(ph[1], "corrected"), "RECTPHAS %s with GAIN", ph[1]);
+    CHECK(fabs(dm[1] - dm[0]) < 0.02, "dm %.3f with GAIN, %.3f with SIMPHOT", dm[1], dm[0]);
+}
+
 /* TSM's iterative inverse (tsm_inverse = TSM_INV_ITER, `recon
  * --tsm-inverse iter`) at 18 angles, the six-star group, noiseless:
  * filtered back projection's streaks cap c (0.70 here), the non-negative
@@ -302,5 +354,6 @@ TEST(bad_inputs_are_named)
 
 TC_MAIN(TC_CASE(every_method_measures_the_binary), TC_CASE(photon_counting_cube),
         TC_CASE(tsm_corrected_phases), TC_CASE(tsm_corrected_phases_need_photons),
+        TC_CASE(camera_gain_gives_photon_statistics),
         TC_CASE(few_angles_iterative_inverse),
         TC_CASE(bad_inputs_are_named))

@@ -13,53 +13,13 @@
 #include <complex.h>
 #include <fftw3.h>
 
-#include "bispec.h"
+#include "bispec_int.h"
 
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define K BISPEC_BATCH
-typedef float vk __attribute__((vector_size(K * sizeof(float))));
-
-struct bispec {
-    int w, h, wc;
-    bispec_opts o;
-    int nf;                  /* F */
-    int32_t *fp, *fq;        /* signed frequency of half-plane entry j */
-    int32_t *ubase;          /* lut index of u_j */
-    unsigned char *seed;
-    int lw, lh, pm, qm;      /* lut geometry: (2pm+1) x (2qm+1) */
-    int32_t *lut;
-    size_t nd;
-    int32_t *doff, *dleg;    /* the u2 disk */
-    int64_t *tstart;
-    uint16_t *tk;
-    int64_t nt;
-    int nthr;
-    int32_t *trange;         /* target ranges of equal triple counts */
-    double *accd, *acc2d;    /* 2 per triple; 1 per triple */
-    float *accf, *acc2f;
-    float *fb;               /* 2F legs x (K re + K im) */
-    int nb;                  /* frames in the current batch */
-    int n;                   /* frames added */
-    double *psum, *xsum;     /* per frequency: sum |F|^2, sum X */
-    double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
-    double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
-    double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
-    float *win, *in, *in2;
-    fftwf_complex *out, *out2;
-    fftwf_plan plan, plan2;
-    double *phi, *work;
-    unsigned char *known;
-    int phased;
-    fftw_complex *cin;       /* image: h*wc half spectrum */
-    double *cout;            /* image: w*h */
-    fftw_plan iplan;
-    size_t mem;              /* bytes allocated (persistent) */
-    sl_err err;
-};
 
 void bispec_opts_default(bispec_opts *o)
 {
@@ -101,11 +61,6 @@ static int cmp_hfreq(const void *x, const void *y)
     return (a->p > b->p) - (a->p < b->p);
 }
 
-static size_t fidx(int p, int q, int w, int h)
-{
-    return (size_t)((q % h + h) % h) * w + (size_t)((p % w + w) % w);
-}
-
 /* The support's half-plane frequencies in rank order, the lut, the disk
  * and the seeds. */
 static int build_freqs(bispec *b)
@@ -122,7 +77,7 @@ static int build_freqs(bispec *b)
         for (int p = 0; p <= pmax; p++) {
             if (p == 0 && q < 0)
                 continue;
-            int in = !m || m[fidx(p, q, w, h)] || m[fidx(-p, -q, w, h)];
+            int in = !m || m[bispec_fidx(p, q, w, h)] || m[bispec_fidx(-p, -q, w, h)];
             if (rc > 0 && hypot(p, q) > rc)
                 in = 0;
             if (in || (p == 0 && q == 0))
@@ -475,7 +430,7 @@ static void *kthread(void *arg)
 }
 
 /* Run the kernel over the batch (empty slots zeroed: they add nothing). */
-static void flush(bispec *b)
+void bispec_flush(bispec *b)
 {
     if (!b->nb)
         return;
@@ -557,90 +512,6 @@ int bispec_add(bispec *b, const float *frame)
     b->n++;
     b->phased = 0;
     if (++b->nb == K)
-        flush(b);
-    return SL_OK;
-}
-
-static void graph_view(const bispec *b, phasor_graph *g)
-{
-    double gain = b->o.adu_per_photon, n = b->n;
-    int ph = b->xsum && n > 0;
-    *g = (phasor_graph){
-        .nfreq = b->nf, .tstart = b->tstart, .tk = b->tk, .ubase = b->ubase,
-        .doff = b->doff, .dleg = b->dleg, .lut = b->lut, .seed = b->seed,
-        .accd = b->accd, .accf = b->accf, .acc2d = b->acc2d,
-        .acc2f = b->acc2f, .nframes = n, .weight = b->o.weight,
-        .xsum = ph ? b->xsum : NULL, .xscale = ph ? gain / n : 0,
-        .bconst = ph ? 2.0 * gain * gain * b->w3sum / n + 3.0 * gain * b->rw3 : 0};
-}
-
-int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
-                  double *bim, double *weight)
-{
-    if (!b || !u1 || !u2 || !bre || !bim || !weight || (int64_t)t >= b->nt)
-        return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
-                         "bispec_triple: bad argument");
-    flush(b);
-    int lo = 0, hi = b->nf; /* largest j with tstart[j] <= t */
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (b->tstart[mid] <= (int64_t)t)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    phasor_graph g;
-    graph_view(b, &g);
-    int l1, l2;
-    phasor_triple(&g, lo, (int64_t)t, &l1, &l2, bre, bim, weight);
-    int nf = b->nf, s1 = l1 < nf ? 1 : -1, s2 = l2 < nf ? 1 : -1;
-    u1[0] = s1 * b->fp[l1 % nf];
-    u1[1] = s1 * b->fq[l1 % nf];
-    u2[0] = s2 * b->fp[l2 % nf];
-    u2[1] = s2 * b->fq[l2 % nf];
-    return SL_OK;
-}
-
-int bispec_phase(bispec *b, double *phase, unsigned char *known)
-{
-    if (!b)
-        return SL_EINVAL;
-    if (!b->n)
-        return sl_seterr(&b->err, SL_EDATA, "bispec_phase: no frames");
-    flush(b);
-    if (!b->phased) {
-        phasor_graph g;
-        graph_view(b, &g);
-        int rc = phasor_solve(&g, b->o.refine_iters, b->work, b->phi,
-                              b->known);
-        if (rc != SL_OK)
-            return sl_seterr(&b->err, rc, "bispec_phase: solver failed");
-        b->phased = 1;
-    }
-    phasor_export(b->nf, b->fp, b->fq, b->phi, b->known, b->w, b->h, phase,
-                  known);
-    return SL_OK;
-}
-
-int bispec_image(bispec *b, const double *modulus, float *img)
-{
-    if (!b || !img)
-        return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
-                         "bispec_image: NULL argument");
-    int rc = bispec_phase(b, NULL, NULL);
-    if (rc != SL_OK)
-        return rc;
-    int w = b->w, h = b->h;
-    double pbias = b->xsum ? b->o.adu_per_photon * b->w2sum / b->n + b->rw2 : 0.0;
-    double *mod = b->work; /* free once the phases are solved */
-    for (int j = 0; j < b->nf; j++)
-        mod[j] = modulus ? modulus[fidx(b->fp[j], b->fq[j], w, h)]
-                         : sqrt(fmax(b->psum[j] / b->n - pbias, 0.0));
-    phasor_halfspec(b->nf, b->fp, b->fq, b->phi, b->known, mod,
-                    b->o.taper_frac, w, h, (double *)b->cin);
-    fftw_execute(b->iplan);
-    double sc = 1.0 / ((double)w * h);
-    for (size_t i = 0; i < (size_t)w * h; i++)
-        img[i] = (float)(b->cout[i] * sc);
+        bispec_flush(b);
     return SL_OK;
 }

@@ -26,12 +26,28 @@ int cube_guard_check(const char *path, sl_err *err)
     char b[2881] = {0}; /* NUL after the block: the scans stop there */
     double bitpix = 0, naxis = 0, n = 1, pcount = 0, gcount = 1, groups = 0;
     int end = 1, zimage = 0, z1 = 0; /* z1: NAXIS1 = 0 (random groups?) */
+    int bad = 0, hdu = 0;              /* bad: 1 + offset of a bad card */
     FILE *f = fopen(path, "rb");
-    while (f && !zimage && fread(b, 1, 2880, f) == 2880) {
+    long blk = 0;
+    while (f && !zimage && !bad && fread(b, 1, 2880, f) == 2880) {
         if (end && strncmp(b, "SIMPLE  ", 8) && strncmp(b, "XTENSION", 8))
             break;
+        hdu += end;
         end = 0;
-        for (const char *k = b; k < b + 2880 && !end; k += 80) {
+        for (const char *k = b; k < b + 2880 && !end && !bad; k += 80) {
+            /* FITS 4.0 s4.1.2: cards are ASCII 0x20-0x7e, and a value
+             * follows "= " in bytes 9-10.  cfitsio 4.2 copies a 71-byte
+             * value after a bare "=" into a 70-byte column name (fortify
+             * abort, tests/fuzz/fuzz_fits_list). */
+            for (int i = 0; i < 80 && !bad; i++)
+                bad = (unsigned char)k[i] < 0x20 || (unsigned char)k[i] > 0x7e
+                          ? 1 + (int)(k - b) + i : 0;
+            if (!bad && k[8] == '=' && k[9] != ' ')
+                bad = 1 + (int)(k - b) + 9;
+            if (bad) {
+                bad += (int)(blk * 2880);
+                break;
+            }
             /* the name as cfitsio takes it: up to a blank or '=' */
             size_t kl = strcspn(k, " =");
             const char *e = k + kl + strspn(k + kl, " ");
@@ -54,17 +70,23 @@ int cube_guard_check(const char *path, sl_err *err)
             n *= ax && !(v == 0 && !strcmp(nm, "NAXIS1")) ? v : 1;
             end = !strncmp(k, "END     ", 8);
         }
-        if (!end || zimage)
+        blk++;
+        if (!end || zimage || bad)
             continue; /* next block of this header, or the verdict */
         double data = naxis > 0 && (!z1 || groups) ? n : 0;
         double bytes = fabs((data + pcount) * gcount * bitpix) / 8;
         if (!(bytes < 1e15) ||
             fseeko(f, (off_t)ceil(bytes / 2880) * 2880, SEEK_CUR))
             break;
+        blk += (long)ceil(bytes / 2880);
         bitpix = naxis = pcount = groups = z1 = 0, n = gcount = 1;
     }
     if (f)
         fclose(f);
+    if (bad)
+        return sl_seterr(err, SL_EFORMAT, "%s: header of HDU %d is not FITS text (byte "
+                         "%d: a character outside ASCII 32-126, or a value not "
+                         "after \"= \"); cfitsio 4.2 may crash on it", path, hdu, bad - 1);
     if (zimage)
         return sl_seterr(err, SL_EFORMAT, "%s: tile-compressed FITS is not "
                          "read (cfitsio 4.2 crashes on corrupt tiles); "

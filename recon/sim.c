@@ -12,7 +12,7 @@
 #include "screen.h"
 
 #define ARCSEC_PER_RAD (180.0 * 3600.0 / M_PI)
-#define SCREEN_MAX_PX 2048 /* peak 80 MiB while generating; longer flows wrap the periodic part */
+#define SCREEN_MAX_PX 2048 /* peak 80 MiB while generating; longer flows change lane */
 
 struct sim {
     sim_opts o;
@@ -180,8 +180,8 @@ static int make_screen(sim *s)
     int n = 64;
     while (n < need && n < SCREEN_MAX_PX)
         n *= 2;
-    /* Past SCREEN_MAX_PX the periodic part repeats (seamlessly) and the
-     * subharmonics stay continuous: documented, not an error. */
+    /* Past SCREEN_MAX_PX the flow changes lane each lap of the grid
+     * (sim_phase_window) instead of repeating it. */
     screen_opts so;
     screen_opts_defaults(&so);
     so.n = n;
@@ -320,9 +320,18 @@ int sim_phase_window(sim *s, int k, float *phase)
         memset(phase, 0, n * sizeof *phase);
         return SL_OK;
     }
+    /* Frozen flow along dir.  The screen's fine grid repeats every n dx
+     * (22.5 m at 200^2 and Nyquist), so after each such lap of flow the
+     * pupil moves sideways to a fresh lane (win + 2 px over): a long
+     * sequence (more frames, a longer frame interval) sees new turbulence
+     * for n / (win + 2) laps instead of the same frames again.  Within a
+     * lap the flow is continuous; sequences shorter than one lap (the
+     * default 100 frames at 10 ms, 10 m/s) are unchanged. */
     double t = k * s->o.frame_interval_s, dir = s->o.wind_dir_deg * M_PI / 180;
-    double x0 = (s->win0 - s->M / 2) * s->dx - s->o.wind_mps * t * cos(dir);
-    double y0 = (s->win0 - s->M / 2) * s->dx - s->o.wind_mps * t * sin(dir);
+    double d = s->o.wind_mps * t, period = screen_n(s->scr) * s->dx;
+    double lane = floor(d / period) * (s->win + 2) * s->dx;
+    double x0 = (s->win0 - s->M / 2) * s->dx - d * cos(dir) + lane * sin(dir);
+    double y0 = (s->win0 - s->M / 2) * s->dx - d * sin(dir) - lane * cos(dir);
     return screen_sample(s->scr, phase, s->win, s->win, x0, y0, s->dx);
 }
 

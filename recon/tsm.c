@@ -18,35 +18,8 @@
 #include <string.h>
 
 #include "rng.h"
-#include "tsm_accum.h"
+#include "tsm_int.h"
 
-struct tsm {
-    int w, h, nang, ns, nf, np, nframes;
-    tsm_opts o;
-    radon *rad;
-    tsm_phase *ph;
-    tpool *pool;              /* threads: accumulation, phases */
-    tsm_accum *acc;           /* steps (1)-(2) */
-    const int *off, *len;     /* pair rows, from ph */
-    float *proj;              /* nang x ns: spatial projections, results */
-    double *pr;               /* 2 nf: alignment scratch */
-    /* The sums, owned by acc (tsm_accum.h); current after sync_sums(). */
-    const double *bre, *bim;  /* nang x np bispectrum sums */
-    const double *ps;         /* nang x nf sum |P|^2 */
-    const double *mre, *mim;  /* nang x nf sum P */
-    double *ref;              /* nang x nf normalised reference power */
-    double *tgt;              /* nang x nf normalised target power */
-    double wiener;
-    int has_ref, have_result;
-    double *phase;            /* nang x nf */
-    double *psc;              /* nang x nf bias-corrected mean power */
-    float complex *ospec;     /* nang x nf recovered spectra */
-    float complex *sref;      /* nang x nf alignment references */
-    double *tr;               /* nang x nf noise transfer; NULL: 1 */
-    double *pw;               /* nang x nf photon part of the mean power */
-    double arc, extent;       /* step 3's arc and the diameter capping it */
-    sl_err err;
-};
 
 void tsm_opts_default(tsm_opts *o) { memset(o, 0, sizeof *o); }
 
@@ -85,7 +58,7 @@ void tsm_reset(tsm *t)
 
 /* Add the buffered frames; the sums' pointers are fixed, this makes their
  * contents current. */
-static void sync_sums(tsm *t)
+void tsm_sync_sums(tsm *t)
 {
     const tsm_sums *s = tsm_accum_sums(t->acc);
     t->bre = s->bre, t->bim = s->bim, t->ps = s->ps, t->mre = s->mre, t->mim = s->mim;
@@ -220,7 +193,7 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
                            t->off, t->len, t->np, batch, t->pool, err);
     if (!t->acc)
         goto fail_free;
-    sync_sums(t);
+    tsm_sync_sums(t);
     size_t nb = (size_t)nang * t->np, nsp = (size_t)nang * t->nf;
     t->proj = malloc((size_t)nang * ns * sizeof *t->proj);
     t->pr = malloc(2 * t->nf * sizeof *t->pr);
@@ -295,7 +268,7 @@ int tsm_add(tsm *t, const float *frame)
 
 /* Mean frame sum, the photon gain g (0 unless photons are known and the
  * mode corrects) and the white-noise level L of the bias mode (tsm.h). */
-static void bias_terms(const tsm *t, double *sbar, double *g, double *level)
+void tsm_bias_terms(const tsm *t, double *sbar, double *g, double *level)
 {
     double s = 0, n = t->nframes, ph = t->o.photons_per_frame;
     for (int a = 0; a < t->nang; a++)
@@ -325,7 +298,7 @@ static void bias_terms(const tsm *t, double *sbar, double *g, double *level)
 /* Mean power at i minus its non-photon white part (level - g <S>, e.g.
  * read noise): the |P|^2 of Wirnitzer's terms, which are photon bias only
  * (Gaussian noise adds nothing to the bispectrum). */
-static double photon_power(const tsm *t, size_t i, double sbar, double g, double lv)
+double tsm_photon_power(const tsm *t, size_t i, double sbar, double g, double lv)
 {
     double white = lv - g * sbar;
     return t->ps[i] / t->nframes - (white > 0 ? white : 0) * (t->tr ? t->tr[i] : 1.0);
@@ -335,9 +308,9 @@ int tsm_noise_level(tsm *t, double *level)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_noise_level: no frames");
-    sync_sums(t);
+    tsm_sync_sums(t);
     double sbar, g;
-    bias_terms(t, &sbar, &g, level);
+    tsm_bias_terms(t, &sbar, &g, level);
     return SL_OK;
 }
 
@@ -345,9 +318,9 @@ int tsm_power(tsm *t, double *ps)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_power: no frames");
-    sync_sums(t);
+    tsm_sync_sums(t);
     double sbar, g, lv;
-    bias_terms(t, &sbar, &g, &lv);
+    tsm_bias_terms(t, &sbar, &g, &lv);
     for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)
         ps[i] = t->ps[i] / t->nframes - lv * (t->tr ? t->tr[i] : 1.0);
     return SL_OK;
@@ -357,7 +330,7 @@ int tsm_mean_projection(tsm *t, float *proj)
 {
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_mean_projection: no frames");
-    sync_sums(t);
+    tsm_sync_sums(t);
     for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)   /* sref: scratch */
         t->sref[i] = CMPLXF((float)(t->mre[i] / t->nframes), (float)(t->mim[i] / t->nframes));
     int st = radon_spec_to_proj(t->rad, t->sref, proj);
@@ -371,245 +344,14 @@ int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
         return sl_seterr(&t->err, SL_ERANGE, "tsm_bispectrum: (%d, %d, %d) not stored", k, u1, u2);
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_bispectrum: no frames");
-    sync_sums(t);
+    tsm_sync_sums(t);
     double sbar, g, lv, n = t->nframes;
-    bias_terms(t, &sbar, &g, &lv);
+    tsm_bias_terms(t, &sbar, &g, &lv);
     size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1, i = (size_t)k * t->nf;
     *re = t->bre[q] / n + 2 * g * g * sbar;
     if (g > 0)
-        *re -= g * (photon_power(t, i + u1, sbar, g, lv) + photon_power(t, i + u2, sbar, g, lv) +
-                    photon_power(t, i + u1 + u2, sbar, g, lv));
+        *re -= g * (tsm_photon_power(t, i + u1, sbar, g, lv) + tsm_photon_power(t, i + u2, sbar, g, lv) +
+                    tsm_photon_power(t, i + u1 + u2, sbar, g, lv));
     *im = t->bim[q] / n;
-    return SL_OK;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-int tsm_set_reference(tsm *t, const double *ps_ref, const double *ps_target,
-                      double wiener)
-{
-    if (!ps_ref) {
-        t->has_ref = 0;
-        return SL_OK;
-    }
-    if (!(wiener >= 0))
-        return sl_seterr(&t->err, SL_EINVAL, "tsm_set_reference: wiener %g", wiener);
-    for (int pass = 0; pass < 2; pass++) {
-        const double *src = pass ? ps_target : ps_ref;
-        double *dst = pass ? t->tgt : t->ref;
-        for (int a = 0; a < t->nang; a++) {
-            const double *p = src ? src + (size_t)a * t->nf : NULL;
-            if (p && !(p[0] > 0))
-                return sl_seterr(&t->err, SL_EDATA, "tsm_set_reference: %s power at "
-                                 "angle %d, u = 0 is %g", pass ? "target" : "reference",
-                                 a, p[0]);
-            for (int j = 0; j < t->nf; j++)
-                dst[(size_t)a * t->nf + j] = p ? p[j] / p[0] : 1.0;
-        }
-    }
-    /* The regulariser scales with the reference's own level: the median
-     * of Rn^2 over u >= 1 (psc is free scratch until tsm_result). */
-    size_t m = 0;
-    for (int a = 0; a < t->nang; a++)
-        for (int j = 1; j < t->nf; j++) {
-            double r = t->ref[(size_t)a * t->nf + j];
-            t->psc[m++] = r * r;
-        }
-    qsort(t->psc, m, sizeof *t->psc, cmp_double);
-    t->wiener = wiener * t->psc[m / 2];
-    t->has_ref = 1;
-    return SL_OK;
-}
-
-/* Sum of the spectra of angle a's nbr neighbours each side; across
- * theta = 0/180 the line reverses, so the spectrum is conjugated. */
-static void neighbour_sum(const tsm *t, int a, int nbr, float complex *out)
-{
-    int nf = t->nf, na = t->nang;
-    for (int j = 0; j < nf; j++)
-        out[j] = 0;
-    for (int m = -nbr; m <= nbr; m++) {
-        int b = a + m;
-        if (m == 0)
-            continue;
-        int wrapped = b < 0 || b >= na;
-        b = b < 0 ? b + na : b >= na ? b - na : b;
-        const float complex *sp = t->ospec + (size_t)b * nf;
-        for (int j = 0; j < nf; j++)
-            out[j] += wrapped ? conjf(sp[j]) : sp[j];
-    }
-}
-
-/* What the modulus is divided by on the spatial path, at angle a, h[j]
- * for j < nf (1 on the Fourier path).  The bilinear rays sample the
- * image's bilinear interpolant (transfer sinc^2(u) sinc^2(v)) along a unit
- * lattice, so a slice is damped by H = sinc^2(rho cos) sinc^2(rho sin)
- * (down to 0.41 at rho = 1/2) plus aliases; the object's, a reference's
- * and a target's power all carry it.  H is divided out up to j_K =
- * nangles / pi, where neighbouring slices lie within one bin of each
- * other (arc pi j / nangles), and held at H(j_K) beyond: there the FBP's
- * angular undersampling streaks grow with the high frequencies, and the
- * damping acts as their window.  Measured, 200^2 bench six-star, 100
- * frames, seeds 1-3, c without / with a reference: 180 angles, damped
- * 0.935 / 0.978, all divided 0.953 / 0.978, up to j_K 0.951 / 0.980; 90
- * angles 0.897 / 0.909, 0.870 / 0.853, 0.899 / 0.904; 18 angles 0.626 /
- * 0.539, 0.531 / 0.461, 0.625 / 0.539. */
-static void signal_transfer(const tsm *t, int a, double *h)
-{
-    double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
-    double jk = t->nang / M_PI;
-    for (int j = 0; j < t->nf; j++) {
-        double r = M_PI * (j < jk ? j : jk) / t->ns, x = r * co, y = r * si;
-        double sx = fabs(x) > 1e-12 ? sin(x) / x : 1.0, sy = fabs(y) > 1e-12 ? sin(y) / y : 1.0;
-        h[j] = t->o.variant == TSM_SPATIAL ? sx * sx * sy * sy : 1.0;
-    }
-}
-
-int tsm_result(tsm *t, float *img)
-{
-    if (t->nframes == 0)
-        return sl_seterr(&t->err, SL_EDATA, "tsm_result: no frames added");
-    sync_sums(t);
-    int nf = t->nf, J = nf - 1, ns = t->ns, st;
-    double sbar, g, lv;
-    bias_terms(t, &sbar, &g, &lv);
-    /* (3) phases from the raw bispectrum unless asked: measured (64^2,
-     * binary and 6 stars, 300..10^4 photons/frame), the unbiased
-     * estimator's phases are much noisier where the photon bias dominates
-     * (c 0.69 vs 0.88 at 300 photons, PA errors); the bias, being real,
-     * only shrinks those elements' phases towards the smooth continuation.
-     * The arc: bench binary, 24 seeds each, binary found / mean c, at
-     * D/r0 ~ 11 noiseless, 1e4 photons + read noise, and D/r0 ~ 4 with
-     * that noise: off 24 / 0.835, 20 / 0.801, 24 / 0.895; 1 bin 24 / 0.848,
-     * 23 / 0.843, 23 / 0.901; 1.5 bins 24 / 0.857, 24 / 0.862,
-     * 23 / 0.901; 2 bins 24 / 0.868, 24 / 0.869, 22 / 0.899. */
-    double arc = t->o.arc_bins > 0 ? t->o.arc_bins : t->o.arc_bins < 0 ? 0.0 : 1.5;
-    t->extent = 0;
-    if (t->o.arc_bins == 0) {   /* capped by the diameter: tsm_extent.c */
-        tsm_power(t, t->psc);
-        t->extent = tsm_extent_px(t->psc, t->nang, nf, ns, 0.05);
-        t->extent = t->extent > 0 ? t->extent : 0;   /* NAN: no memory, no cap */
-        arc = fmin(arc, tsm_arc_cap(t->extent, ns));
-    }
-    t->arc = arc;
-    for (size_t i = 0; i < (size_t)t->nang * nf; i++) {   /* psc: scratch */
-        t->psc[i] = t->ps[i] / t->nframes;
-        t->pw[i] = photon_power(t, i, sbar, g, lv);
-    }
-    tsm_phase_inputs(t->ph, t->bre, t->bim, t->nframes, t->psc, t->pw,
-                     t->o.bispec_bias_phase ? g : 0.0, sbar, t->o.weight, arc);
-    int iters = t->o.refine_iters < 0 ? 0 : t->o.refine_iters ? t->o.refine_iters : 10;
-    tsm_phase_solve(t->ph, iters, t->phase);
-    /* (4) modulus, (5) spectra */
-    tsm_power(t, t->psc);
-    for (int a = 0; a < t->nang; a++) {
-        const double *pc = t->psc + (size_t)a * nf, *rf = t->ref + (size_t)a * nf;
-        const double *tg = t->tgt + (size_t)a * nf;
-        double *undamp = t->pr;
-        signal_transfer(t, a, undamp);
-        for (int j = 0; j < nf; j++) {
-            double m2 = pc[j];
-            if (t->has_ref && pc[0] > 0)
-                m2 = pc[j] * rf[j] / (rf[j] * rf[j] + t->wiener) * fmax(tg[j], 0);
-            double m = m2 > 0 ? sqrt(m2) / undamp[j] : 0, x = (double)j / J;
-            if (t->o.apod == TSM_APOD_HANN)
-                m *= 0.5 * (1 + cos(M_PI * x));
-            else if (t->o.apod == TSM_APOD_COSINE)
-                m *= cos(M_PI_2 * x);
-            double phi = t->phase[(size_t)a * nf + j];
-            t->ospec[(size_t)a * nf + j] = CMPLXF((float)(m * cos(phi)), (float)(m * sin(phi)));
-        }
-    }
-    /* (5) centre each projection on its centroid: twice, the second pass
-     * measures with the object already away from the wrap point */
-    double cfrac = t->o.centroid_frac > 0 ? t->o.centroid_frac
-                 : t->o.centroid_frac < 0 ? 0.0 : 0.05;
-    for (int pass = 0; pass < 2; pass++) {
-        if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-            goto fail_radon;
-        for (int a = 0; a < t->nang; a++)
-            tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns,
-                            tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac));
-    }
-    /* Then align each projection to the sum of its neighbours within
-     * align_deg (they see nearly the same object): a per-angle shift
-     * measured on the whole profile rather than on its bright part. */
-    double adeg = t->o.align_deg > 0 ? t->o.align_deg : t->o.align_deg < 0 ? 0.0 : 8.0;
-    int nbr = (int)floor(adeg * t->nang / 180.0 + 1e-9);
-    nbr = nbr > t->nang / 4 ? t->nang / 4 : nbr;
-    for (int it = 0; nbr > 0 && it < 3; it++) {
-        for (int a = 0; a < t->nang; a++)
-            neighbour_sum(t, a, nbr, t->sref + (size_t)a * nf);
-        for (int a = 0; a < t->nang; a++)
-            tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns,
-                            tsm_phase_align(t->ospec + (size_t)a * nf, t->sref + (size_t)a * nf,
-                                            nf, ns, 3.0, t->pr));
-    }
-    int riters = t->o.reproj_iters < 0 ? 0 : t->o.reproj_iters ? t->o.reproj_iters : 3;
-    /* t->proj is free until the final projections: the rounds' shifts */
-    if (riters > 0 &&
-        (st = tsm_phase_reproj(t->rad, t->ospec, nf, (size_t)t->w * t->h, riters,
-                               t->o.reproj_frac > 0 ? t->o.reproj_frac : 0.2, img, t->sref,
-                               t->proj, t->pr)) != SL_OK)
-        goto fail_radon;
-    /* That may move the object as a whole: put its centroid back at the
-     * centre with one 2-D shift, the least-squares fit cx cos + cy sin of
-     * the per-angle centroids (consistent across angles by construction). */
-    if (nbr > 0 || riters > 0) {
-        if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-            goto fail_radon;
-        double cx = 0, cy = 0, sxx = 0, sxy = 0, syy = 0, bx = 0, by = 0;
-        for (int a = 0; a < t->nang; a++) {
-            double c = tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac);
-            double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
-            sxx += co * co, sxy += co * si, syy += si * si, bx += c * co, by += c * si;
-        }
-        double det = sxx * syy - sxy * sxy;
-        if (det > 1e-9 * (sxx + syy) * (sxx + syy)) {
-            cx = (syy * bx - sxy * by) / det, cy = (sxx * by - sxy * bx) / det;
-            for (int a = 0; a < t->nang; a++) {
-                double th = radon_angle_rad(t->rad, a);
-                tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns, cx * cos(th) + cy * sin(th));
-            }
-        }
-    }
-    if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-        goto fail_radon;
-    t->have_result = 1;
-    /* (6) inversion */
-    tsm_inverse inv = t->o.inverse;
-    if (inv == TSM_INV_AUTO)
-        inv = t->o.variant == TSM_FOURIER ? TSM_INV_FBP_GRID : TSM_INV_FBP_SPATIAL;
-    switch (inv) {
-    case TSM_INV_FBP_SPATIAL: st = radon_fbp(t->rad, t->proj, img); break;
-    case TSM_INV_ITER:
-        st = radon_invert_iter(t->rad, t->ospec, t->o.inv_iters ? t->o.inv_iters : 40, 1, img);
-        break;
-    default: st = radon_fbp_slices(t->rad, t->ospec, img); break;
-    }
-    if (st != SL_OK)
-        goto fail_radon;
-    return SL_OK;
-fail_radon:
-    return sl_seterr(&t->err, st, "tsm_result: %s", radon_errmsg(t->rad));
-}
-
-int tsm_projections(tsm *t, float *proj)
-{
-    if (!t->have_result)
-        return sl_seterr(&t->err, SL_EDATA, "tsm_projections: no result yet");
-    memcpy(proj, t->proj, (size_t)t->nang * t->ns * sizeof *proj);
-    return SL_OK;
-}
-
-int tsm_phases(tsm *t, double *phase)
-{
-    if (!t->have_result)
-        return sl_seterr(&t->err, SL_EDATA, "tsm_phases: no result yet");
-    memcpy(phase, t->phase, (size_t)t->nang * t->nf * sizeof *phase);
     return SL_OK;
 }

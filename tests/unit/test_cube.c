@@ -639,6 +639,57 @@ TEST(frame_list_with_mismatched_sizes)
           strstr(e.msg, "8 x 9"), "%s", e.msg);
 }
 
+/* Header cards that are not FITS text (a byte outside ASCII 32-126, a
+ * value after a bare "=") are refused before cfitsio parses them: cfitsio
+ * 4.2 aborts on a 71-byte column name after a bare "=" (found by
+ * fuzz_fits_list).  The untouched file reads. */
+static int patch_header(const char *path, int k)
+{
+    seq *s = pattern_seq(8, 8, 2, 0);
+    int rc = cube_write(path, s, NULL, NULL);
+    seq_free(s);
+    FILE *f = rc == SL_OK ? fopen(path, "r+b") : NULL;
+    char hdr[2880];
+    if (!f || fread(hdr, 1, sizeof hdr, f) != sizeof hdr) {
+        if (f)
+            fclose(f);
+        return -1;
+    }
+    int end = 0;
+    while (end < 36 && strncmp(hdr + 80 * end, "END     ", 8))
+        end++;
+    if (k == 1)
+        hdr[80 + 75] = (char)0xe8;   /* in BITPIX's comment */
+    if (k == 2 && end < 35) {        /* a card "JUNK    =1", then END */
+        memcpy(hdr + 80 * (end + 1), hdr + 80 * end, 80);
+        memset(hdr + 80 * end, ' ', 80);
+        memcpy(hdr + 80 * end, "JUNK    =1", 10);
+    }
+    rc = fseek(f, 0, SEEK_SET) || fwrite(hdr, 1, sizeof hdr, f) != sizeof hdr;
+    return fclose(f) || rc || (k == 2 && end >= 35) ? -1 : 0;
+}
+
+TEST(header_text_is_checked)
+{
+    tmpdir d;
+    seq *s = NULL;
+    sl_err e = {0};
+    CHECK(tmp_make(&d), "mkdtemp");
+    const char *p = tmp_path(&d, 0, "hdr.fits");
+    for (int k = 0; k < 3; k++) {
+        CHECK(patch_header(p, k) == 0, "setup %d", k);
+        int rc = cube_read(&s, NULL, &p, 1, 0, &e);
+        if (k == 0)
+            CHECK(rc == SL_OK && s, "untouched: %s", e.msg);
+        else
+            CHECK(rc == SL_EFORMAT && strstr(e.msg, p) && strstr(e.msg, "not FITS text") &&
+                      !s, "case %d: %d %s", k, rc, e.msg);
+        seq_free(s);
+        s = NULL;
+    }
+    tmp_remove(&d);
+}
+
 /* Write a cube of 64x64 frames (16 kB each: cfitsio reads them directly,
  * bypassing its 2880-byte buffers) and cut it at byte `keep`. */
 static int truncated_cube(const char *path, off_t keep)
@@ -783,7 +834,7 @@ TC_MAIN(TC_CASE(every_bitpix_round_trips_exactly),
         TC_CASE(default_date_and_naxis),
         TC_CASE(frame_list_is_one_sequence_and_streams),
         TC_CASE(glob_expands_in_strcmp_order),
-        TC_CASE(flushed_frames_survive_a_crash),
+        TC_CASE(flushed_frames_survive_a_crash), TC_CASE(header_text_is_checked),
         TC_CASE(write_errors_are_reported),
         TC_CASE(image_extensions),
         TC_CASE(unreadable_files),

@@ -103,6 +103,23 @@ TEST(cophased_psf_is_pupil_power_spectrum)
     mask_free(m);
 }
 
+/* The flow tests' point source through nrm17 with small_opts, and the
+ * pupil grid pitch dx (m) to set the wind in pixels per frame. */
+static int flow_setup(sim_opts *o, mask **m, scene **sc, double *dx, sl_err *e)
+{
+    sim *s = NULL;
+    small_opts(o);
+    int rc = mask_named(m, "nrm17", e);
+    if (rc == SL_OK)
+        rc = scene_named(sc, "point", 0, 0, 0, e);
+    if (rc == SL_OK)
+        rc = sim_new(&s, o, *m, *sc, e);
+    if (rc == SL_OK)
+        *dx = sim_pupil_pitch_m(s);
+    sim_free(s);
+    return rc;
+}
+
 /* Frozen flow: with v dt = 3 pupil pixels, frame k+1's screen is frame k's
  * moved by 3 pixels along the wind. */
 TEST(frozen_flow_shifts_the_screen)
@@ -112,12 +129,8 @@ TEST(frozen_flow_shifts_the_screen)
     scene *sc = NULL;
     sim *s = NULL;
     sim_opts o;
-    small_opts(&o);
-    CHECK(mask_named(&m, "nrm17", &e) == SL_OK, "%s", e.msg);
-    CHECK(scene_named(&sc, "point", 0, 0, 0, &e) == SL_OK, "%s", e.msg);
-    CHECK(sim_new(&s, &o, m, sc, &e) == SL_OK, "%s", e.msg);
-    double dx = sim_pupil_pitch_m(s);
-    sim_free(s);
+    double dx = 0;
+    CHECK(flow_setup(&o, &m, &sc, &dx, &e) == SL_OK, "%s", e.msg);
     for (int dir = 0; dir < 2; dir++) {
         o.wind_dir_deg = dir ? 90 : 0;
         o.wind_mps = 3 * dx / o.frame_interval_s;
@@ -150,6 +163,55 @@ TEST(frozen_flow_shifts_the_screen)
     }
     scene_free(sc);
     mask_free(m);
+}
+
+/* Correlation of the x-gradients of two windows: the gradient removes the
+ * screen's non-periodic low-order part (sim.c: the analytic terms), so it
+ * compares what the periodic grid contributes. */
+static double gradient_corr(const float *a, const float *b, int W)
+{
+    double sab = 0, saa = 0, sbb = 0;
+    for (int y = 0; y < W; y++)
+        for (int x = 0; x + 1 < W; x++) {
+            double ga = a[y * W + x + 1] - a[y * W + x], gb = b[y * W + x + 1] - b[y * W + x];
+            sab += ga * gb, saa += ga * ga, sbb += gb * gb;
+        }
+    return sab / sqrt(saa * sbb);
+}
+
+/* A flow longer than the screen's grid (2048 px) must not replay it: one
+ * lap of flow later the pupil sees other turbulence (a fresh lane), while
+ * within a lap frozen flow holds (frozen_flow_shifts_the_screen).  Before
+ * the lanes, frame 128 replayed frame 0 (gradient correlation 0.998). */
+TEST(long_flow_changes_lane)
+{
+    sl_err e;
+    mask *m = NULL;
+    scene *sc = NULL;
+    sim *s = NULL;
+    sim_opts o;
+    double dx = 0;
+    CHECK(flow_setup(&o, &m, &sc, &dx, &e) == SL_OK, "%s", e.msg);
+    o.wind_mps = 16 * dx / o.frame_interval_s;   /* 16 px per frame */
+    o.nframes = 300;                              /* 4784 px of flow */
+    CHECK(sim_new(&s, &o, m, sc, &e) == SL_OK, "%s", e.msg);
+    int W = sim_window_px(s);
+    float *a = malloc(sizeof(float) * W * W), *b = malloc(sizeof(float) * W * W);
+    /* frame 0 at x; frame 128 one 2048 px lap later, frame 129 one frame
+     * further: before the lanes 128 replayed 0 */
+    CHECK(sim_phase_window(s, 0, a) == SL_OK && sim_phase_window(s, 128, b) == SL_OK, "window");
+    double c_lap = gradient_corr(a, b, W);
+    CHECK(sim_phase_window(s, 129, b) == SL_OK, "window");
+    double c_next = gradient_corr(a, b, W);
+    free(a);
+    free(b);
+    sim_free(s);
+    scene_free(sc);
+    mask_free(m);
+    printf("    gradient correlation with frame 0: frame 128 %.3f, frame 129 %.3f\n", c_lap,
+           c_next);
+    CHECK(fabs(c_lap) < 0.5 && fabs(c_next) < 0.5, "a lap later the screen repeats: %.3f, %.3f",
+          c_lap, c_next);
 }
 
 /* Same seed, same frames (in any order); another seed, other frames. */
@@ -384,7 +446,8 @@ TEST(position_angle_convention)
 }
 
 TC_MAIN(TC_CASE(psf_flux_is_conserved), TC_CASE(cophased_psf_is_pupil_power_spectrum),
-        TC_CASE(frozen_flow_shifts_the_screen), TC_CASE(seed_determines_output),
+        TC_CASE(frozen_flow_shifts_the_screen), TC_CASE(long_flow_changes_lane),
+        TC_CASE(seed_determines_output),
         TC_CASE(binary_fringes_match_separation_and_pa), TC_CASE(detector_counts_photons),
         TC_CASE(coarse_plate_scale_warns_and_bins), TC_CASE(bad_options_are_named),
         TC_CASE(scene_file_and_render), TC_CASE(position_angle_convention))

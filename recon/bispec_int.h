@@ -1,0 +1,62 @@
+/* bispec_int.h - the bispectrum handle's insides, shared by bispec.c
+ * (planning and the accumulation hot loop) and bispec_result.c (phases
+ * and the image).  Not a public header. */
+#ifndef SL_BISPEC_INT_H
+#define SL_BISPEC_INT_H
+
+#include <complex.h>
+#include <fftw3.h>
+
+#include "bispec.h"
+
+#define K BISPEC_BATCH
+typedef float vk __attribute__((vector_size(K * sizeof(float))));
+
+struct bispec {
+    int w, h, wc;
+    bispec_opts o;
+    int nf;                  /* F */
+    int32_t *fp, *fq;        /* signed frequency of half-plane entry j */
+    int32_t *ubase;          /* lut index of u_j */
+    unsigned char *seed;
+    int lw, lh, pm, qm;      /* lut geometry: (2pm+1) x (2qm+1) */
+    int32_t *lut;
+    size_t nd;
+    int32_t *doff, *dleg;    /* the u2 disk */
+    int64_t *tstart;
+    uint16_t *tk;
+    int64_t nt;
+    int nthr;
+    int32_t *trange;         /* target ranges of equal triple counts */
+    double *accd, *acc2d;    /* 2 per triple; 1 per triple */
+    float *accf, *acc2f;
+    float *fb;               /* 2F legs x (K re + K im) */
+    int nb;                  /* frames in the current batch */
+    int n;                   /* frames added */
+    double *psum, *xsum;     /* per frequency: sum |F|^2, sum X */
+    double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
+    double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
+    double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
+    float *win, *in, *in2;
+    fftwf_complex *out, *out2;
+    fftwf_plan plan, plan2;
+    double *phi, *work;
+    unsigned char *known;
+    int phased;
+    fftw_complex *cin;       /* image: h*wc half spectrum */
+    double *cout;            /* image: w*h */
+    fftw_plan iplan;
+    size_t mem;              /* bytes allocated (persistent) */
+    sl_err err;
+};
+
+/* Index of frequency (p, q) in a w x h FFT array (negative p, q wrap). */
+static inline size_t bispec_fidx(int p, int q, int w, int h)
+{
+    return (size_t)((q % h + h) % h) * w + (size_t)((p % w + w) % w);
+}
+
+/* Run the triple kernel over the batch of buffered frames (bispec.c). */
+void bispec_flush(bispec *b);
+
+#endif

@@ -44,6 +44,7 @@ typedef struct bench_args {
     char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
     int repeat, threads;
     gint64 seed;
+    double interval_ms;   /* 0: the simulator's */
 } bench_args;
 
 /* One Cartesian sweep, in the option syntax. */
@@ -174,6 +175,7 @@ static const refset *get_ref(ctx *c, int w, int h, int n, double photons)
     s.nframes = n;
     s.photons = photons;
     s.seed = (uint64_t)c->a->seed + 1000;
+    s.frame_interval_s = c->a->interval_ms * 1e-3;
     sl_err e = {0};
     fprintf(stderr, "bench: simulating the reference, %dx%d, %d frames, %g "
             "photons\n", w, h, n, photons);
@@ -283,8 +285,10 @@ int bcli_run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
             d->scene, d->width, d->height, d->nframes, d->photons,
             d->bad_frames ? ", bad frames injected" : "",
             d->oversample > 1 ? ", oversampled" : "");
+    bench_sim dt = *d;
+    dt.frame_interval_s = c->a->interval_ms * 1e-3;
     int rc = !img ? sl_seterr(&e, SL_ENOMEM, "out of memory")
-                  : bench_sim_write(d, cube, NULL, &e);
+                  : bench_sim_write(&dt, cube, NULL, &e);
     bench_score mfloor;
     if (rc == SL_OK)
         rc = bench_truth_read(&truth, cube, &e);
@@ -553,6 +557,7 @@ int cmd_bench(int argc, char **argv)
         {"repeat", 0, 0, G_OPTION_ARG_INT, &a.repeat, "runs per point, median reported (default 1; --speed 5)", "N"},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"seed", 0, 0, G_OPTION_ARG_INT64, &a.seed, "simulation seed (reference: seed + 1000)", "N"},
+        {"frame-interval-ms", 0, 0, G_OPTION_ARG_DOUBLE, &a.interval_ms, "time between simulated frames (default 10: 100 frames share 10 m of screen)", "MS"},
         {"estimate", 0, 0, G_OPTION_ARG_NONE, &a.estimate, "FFTW_ESTIMATE plans instead of FFTW_MEASURE", NULL},
         {"csv", 0, 0, G_OPTION_ARG_FILENAME, &a.csv, "CSV output (default bench.csv; none: skip)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "time/error chart (default bench.png; none: skip)", "FILE"},
@@ -578,10 +583,11 @@ int cmd_bench(int argc, char **argv)
     if (a.repeat == 0)
         a.repeat = a.speed ? 5 : 1;
     if (a.repeat < 1 || a.repeat > BENCH_MAX_REPEAT || a.threads < 0 ||
+        !(a.interval_ms >= 0 && a.interval_ms <= 1e4) ||
         a.quick + a.paper + a.speed + a.skips_report > 1) {
-        fprintf(stderr, "specklab bench: --repeat 1..%d, --threads >= 0, and "
-                "at most one of --quick/--paper/--speed/--skips-report\n",
-                BENCH_MAX_REPEAT);
+        fprintf(stderr, "specklab bench: --repeat 1..%d, --threads >= 0, "
+                "--frame-interval-ms 0..10000, and at most one of "
+                "--quick/--paper/--speed/--skips-report\n", BENCH_MAX_REPEAT);
         goto free_ctx;
     }
     status = bench_main(&a);

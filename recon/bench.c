@@ -55,6 +55,7 @@ static void sim_header(const bench_sim *b, const sim *s, double lod_px,
     cube_meta_set_num(md, "LODPX", lod_px, "[px] lambda/D, D = mask extent");
     cube_meta_set_num(md, "SIMR0", o->r0_m, "[m] Fried parameter");
     cube_meta_set_num(md, "SIMWIND", o->wind_mps, "[m/s] frozen-flow speed");
+    cube_meta_set_num(md, "SIMDT", o->frame_interval_s, "[s] frame interval");
     cube_meta_set_num(md, "SIMSEED", (double)o->seed, "random seed");
     cube_meta_set_num(md, "SIMPHOT", o->photons_per_frame, "mean photons/frame, 0 = noiseless");
     if (o->photons_per_frame > 0) {
@@ -131,6 +132,8 @@ int bench_sim_write(const bench_sim *b, const char *cube_path,
     o.plate_scale_arcsec = b->plate_scale_arcsec;
     o.r0_m = b->r0_m > 0 ? b->r0_m : 0.2;
     o.wind_mps = b->wind_mps;
+    if (b->frame_interval_s > 0)
+        o.frame_interval_s = b->frame_interval_s;
     o.saturation_adu = b->saturation_adu > 0 ? b->saturation_adu : 1e9;
     o.fftw_flags = FFTW_ESTIMATE;
     int rc = mask_named(&m, "nrm17", err);

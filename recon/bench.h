@@ -52,6 +52,7 @@ typedef struct bench_sim {
     double plate_scale_arcsec;  /* 0 = Nyquist for the mask */
     double r0_m;                /* Fried parameter at 500 nm */
     double wind_mps;
+    double frame_interval_s;    /* 0: the simulator's (10 ms) */
     double saturation_adu;      /* detector clip level (photon frames) */
     double oversample;          /* > 1: sampled this x finer than Nyquist
                                  * (when plate_scale_arcsec is 0) */

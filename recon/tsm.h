@@ -41,7 +41,7 @@
  *       by a reference star's power spectrum with a Wiener regulariser;
  *       on the spatial path also divided by the bilinear projector's
  *       signal transfer sinc^2(rho cos) sinc^2(rho sin) up to nangles / pi
- *       bins, where the slices sample the plane densely (tsm.c);
+ *       bins, where the slices sample the plane densely (tsm_result.c);
  *   (5) projections rebuilt and each centred on its own centroid (of the
  *       part above centroid_frac of its peak): the centroid of a
  *       projection is the projection of the object's centroid, so this is
@@ -94,7 +94,7 @@
  * bench binary at 1e4 photons + 2 e- read noise is found in 9/24 seeds
  * without the read-noise part, 24/24 with it.  The modulus always uses
  * the corrected power; the phases by default use the raw bispectrum
- * (bispec_bias_phase = 0, tsm.c), whose real photon bias shrinks the
+ * (bispec_bias_phase = 0, tsm_result.c), whose real photon bias shrinks the
  * closure phases: a companion reads faint.  Measured on the 200^2 bench
  * binary (100 frames, tsm-fourier 180, dm 1 and 2 at 5-40 px): raw
  * phases read dm +0.4..+1.0 at 1000 photons/frame, +0.05..+0.30 at 1e4;
@@ -201,7 +201,7 @@ typedef struct tsm_opts {
     double photons_per_frame;  /* > 0: photon statistics known */
     double read_noise_adu;     /* per pixel rms, for TSM_BIAS_PHOTON */
     int bispec_bias_phase;     /* 1: phases from the bias-corrected
-                                * bispectrum too (0: raw, see tsm.c) */
+                                * bispectrum too (0: raw, see tsm_result.c) */
     radon_window window;       /* FBP window */
     tsm_inverse inverse;
     int inv_iters;             /* TSM_INV_ITER iterations; 0: 40 */

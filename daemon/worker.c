@@ -160,8 +160,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     JsonBuilder *b = json_builder_new();
     json_builder_begin_object(b);
     proto_add_str(b, "method", j->method);
-    if (po.method != PIPE_DIRECT)   /* pipeline.h: 0 means 180 */
-    {
+    if (po.method != PIPE_DIRECT) {   /* pipeline.h: 0 means 180 */
         proto_add_int(b, "projections", po.nangles > 0 ? po.nangles : 180);
         /* what ran: corrected needs the cube's photon statistics */
         const char *ph = NULL;

@@ -71,6 +71,12 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
             if (cube_meta_get_num(&r->meta, keys[i], &v) == SL_OK)
                 cli_json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
+        /* where the photon count came from, and what TSM ran */
+        static const char *skeys[] = {"RECPHSRC", "RECTPHAS", "RECTINV"};
+        const char *sv;
+        for (size_t i = 0; i < sizeof skeys / sizeof skeys[0]; i++)
+            if (cube_meta_get_str(&r->meta, skeys[i], &sv) == SL_OK)
+                cli_json_str(b, skeys[i] + 3, sv); /* "PHSRC", "TPHAS", "TINV" */
         cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
         json_builder_end_object(b);
         probe_json(b, &r->meta);

@@ -291,8 +291,31 @@ TEST(camera_gain_gives_photon_statistics)
             dm[i] = b.dm_mag;
         pipeline_result_clear(&r);
     }
+    /* The caller's "not photon counts" (photons < 0) overrides GAIN. */
+    char src_neg[16] = "", ph_neg[16] = "";
+    if (rc == SL_OK) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = PIPE_TSM_FOURIER;
+        o.nangles = 36;
+        o.tsm_corrected_phases = 1;
+        o.photons_per_frame = -1;
+        o.fftw_measure = 0;
+        pipeline_result r;
+        sl_err e;
+        const char *paths[] = {cubes.path[1]}, *k;
+        if ((rc = pipeline_run(paths, 1, &o, &r, &e)) == SL_OK) {
+            if (cube_meta_get_str(&r.meta, "RECPHSRC", &k) == SL_OK)
+                snprintf(src_neg, sizeof src_neg, "%s", k);
+            if (cube_meta_get_str(&r.meta, "RECTPHAS", &k) == SL_OK)
+                snprintf(ph_neg, sizeof ph_neg, "%s", k);
+            pipeline_result_clear(&r);
+        }
+    }
     tmp_clean(&cubes);
     CHECK(rc == SL_OK, "simulating or reconstructing");
+    CHECK(!strcmp(src_neg, "none") && !strcmp(ph_neg, "raw"),
+          "--photons -1 with GAIN: RECPHSRC %s, RECTPHAS %s", src_neg, ph_neg);
     printf("    SIMPHOT: %.0f photons, dm %.3f; GAIN: %.0f photons, dm %.3f\n",
            phot[0], dm[0], phot[1], dm[1]);
     CHECK(!strcmp(src[0], "SIMPHOT") && !strcmp(src[1], "GAIN"), "RECPHSRC %s / %s",

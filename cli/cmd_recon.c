@@ -98,6 +98,12 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         printf("%s: %s of %d frames (%dx%d) -> %s in %.3f s, peak %.0f MB\n",
                input, ran, r->nframes, r->width, r->height, a->out,
                r->elapsed_s, cli_peak_rss_mb());
+        double phot;
+        const char *src;
+        if (cube_meta_get_num(&r->meta, "RECPHOT", &phot) == SL_OK && phot > 0 &&
+            cube_meta_get_str(&r->meta, "RECPHSRC", &src) == SL_OK)
+            printf("  photon bias: %.0f photons/frame (from %s)\n", phot,
+                   !strcmp(src, "GAIN") ? "GAIN and the mean flux" : src);
         double cw, ch, rej, pred;
         if (cube_meta_get_num(&r->meta, "RECCROPW", &cw) == SL_OK &&
             cube_meta_get_num(&r->meta, "RECCROPH", &ch) == SL_OK &&

@@ -75,6 +75,16 @@ static void print_recon_rows(JsonArray *recs)
                dcmd_fmt(t, sizeof t, "%.2f", dcmd_num(x, "elapsed_s")),
                time_of_day(st, sizeof st, dcmd_str(x, "started")),
                or_dash(dcmd_str(x, "png") ? dcmd_str(x, "png") : dcmd_str(x, "fits")));
+        /* what ran: method parameters, skips, TSM phases (the worker's) */
+        JsonObject *params = dcmd_obj(x, "params");
+        if (params) {
+            JsonNode *n = json_node_new(JSON_NODE_OBJECT);
+            json_node_set_object(n, params);
+            gchar *txt = json_to_string(n, FALSE);
+            printf("       params %s\n", txt);
+            g_free(txt);
+            json_node_free(n);
+        }
     }
 }
 

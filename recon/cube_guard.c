@@ -26,9 +26,9 @@ int cube_guard_check(const char *path, sl_err *err)
     char b[2881] = {0}; /* NUL after the block: the scans stop there */
     double bitpix = 0, naxis = 0, n = 1, pcount = 0, gcount = 1, groups = 0;
     int end = 1, zimage = 0, z1 = 0; /* z1: NAXIS1 = 0 (random groups?) */
-    int bad = 0, hdu = 0;              /* bad: 1 + offset of a bad card */
+    int bad = 0, hdu = 0;   /* bad: a card that is not FITS text */
+    long long at = 0;       /* its first bad byte, from the file's start */
     FILE *f = fopen(path, "rb");
-    long blk = 0;
     while (f && !zimage && !bad && fread(b, 1, 2880, f) == 2880) {
         if (end && strncmp(b, "SIMPLE  ", 8) && strncmp(b, "XTENSION", 8))
             break;
@@ -39,13 +39,14 @@ int cube_guard_check(const char *path, sl_err *err)
              * follows "= " in bytes 9-10.  cfitsio 4.2 copies a 71-byte
              * value after a bare "=" into a 70-byte column name (fortify
              * abort, tests/fuzz/fuzz_fits_list). */
-            for (int i = 0; i < 80 && !bad; i++)
-                bad = (unsigned char)k[i] < 0x20 || (unsigned char)k[i] > 0x7e
-                          ? 1 + (int)(k - b) + i : 0;
-            if (!bad && k[8] == '=' && k[9] != ' ')
-                bad = 1 + (int)(k - b) + 9;
-            if (bad) {
-                bad += (int)(blk * 2880);
+            int i = 0;
+            while (i < 80 && (unsigned char)k[i] >= 0x20 && (unsigned char)k[i] <= 0x7e)
+                i++;
+            if (i == 80 && k[8] == '=' && k[9] != ' ')
+                i = 9;
+            if (i < 80) {
+                bad = 1;
+                at = (long long)ftello(f) - 2880 + (k - b) + i;
                 break;
             }
             /* the name as cfitsio takes it: up to a blank or '=' */
@@ -70,7 +71,6 @@ int cube_guard_check(const char *path, sl_err *err)
             n *= ax && !(v == 0 && !strcmp(nm, "NAXIS1")) ? v : 1;
             end = !strncmp(k, "END     ", 8);
         }
-        blk++;
         if (!end || zimage || bad)
             continue; /* next block of this header, or the verdict */
         double data = naxis > 0 && (!z1 || groups) ? n : 0;
@@ -78,15 +78,14 @@ int cube_guard_check(const char *path, sl_err *err)
         if (!(bytes < 1e15) ||
             fseeko(f, (off_t)ceil(bytes / 2880) * 2880, SEEK_CUR))
             break;
-        blk += (long)ceil(bytes / 2880);
         bitpix = naxis = pcount = groups = z1 = 0, n = gcount = 1;
     }
     if (f)
         fclose(f);
     if (bad)
         return sl_seterr(err, SL_EFORMAT, "%s: header of HDU %d is not FITS text (byte "
-                         "%d: a character outside ASCII 32-126, or a value not "
-                         "after \"= \"); cfitsio 4.2 may crash on it", path, hdu, bad - 1);
+                         "%lld: a character outside ASCII 32-126, or a value not "
+                         "after \"= \"); cfitsio 4.2 may crash on it", path, hdu, at);
     if (zimage)
         return sl_seterr(err, SL_EFORMAT, "%s: tile-compressed FITS is not "
                          "read (cfitsio 4.2 crashes on corrupt tiles); "

@@ -285,13 +285,9 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         ps_ref = malloc(n * sizeof *ps_ref);
         mod = malloc(n * sizeof *mod);
         double gr = 0, pr = 0;
-        int src = photon_params(o, cube_reader_meta(ref->rd), &pr, &gr);
-        gr *= ref->scale;
-        if (src == PHOT_GAIN &&
-            (rc = stream_photons_from_gain(ref, gr, &pr, err)) != SL_OK)
+        int src;
+        if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK)
             goto free_all;
-        if (!(pr > 0) && src == PHOT_GAIN)
-            gr = 0;
         rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
                              : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, err);
         if (rc != SL_OK)
@@ -390,11 +386,9 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         return rc;
     if (ref) {
         tsm_opts ro = to;
-        double gr;
-        if (photon_params(o, cube_reader_meta(ref->rd), &ro.photons_per_frame,
-                          &gr) == PHOT_GAIN &&
-            (rc = stream_photons_from_gain(ref, gr * ref->scale,
-                                           &ro.photons_per_frame, err)) != SL_OK)
+        double gr;   /* TSM takes its gain from the photon count */
+        int src;
+        if ((rc = stream_photon_stats(ref, o, &ro.photons_per_frame, &gr, &src, err)) != SL_OK)
             goto free_all;
         ro.read_noise_adu = stream_read_noise_adu(ref, ro.photons_per_frame);
         /* the target is a model PSF: noiseless, no bias to remove */
@@ -487,13 +481,9 @@ int pipeline_run(const char *const *paths, int npaths,
     if (o->learn_badpix && s.pp && (rc = learn_badpix(&s, err)) != SL_OK)
         goto close_ref;
     double photons, g;
-    int phsrc = photon_params(o, cube_reader_meta(s.rd), &photons, &g);
-    g *= s.scale;   /* ADU per photon, in the scaled frames' units */
-    if (phsrc == PHOT_GAIN &&
-        (rc = stream_photons_from_gain(&s, g, &photons, err)) != SL_OK)
+    int phsrc;
+    if ((rc = stream_photon_stats(&s, o, &photons, &g, &phsrc, err)) != SL_OK)
         goto close_ref;
-    if (!(photons > 0))
-        phsrc = PHOT_NONE, g = 0;
     /* eo: what runs (auto's choice applied); ch: what autoconf chose */
     pipeline_opts eo = *o;
     autoconf_choice ch;

@@ -43,17 +43,18 @@ int stream_next(stream *s);
  * one prep per frame; allocation-free. */
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 
-/* Photon statistics (pipeline_photons.c).  photon_params: *photons and
- * *g (ADU per photon) from the options, else the header; returns where
- * they came from (PHOT_*, RECPHSRC).  PHOT_GAIN: a gain without a photon
- * count (camera cubes, GAIN and no SIMPHOT), *photons = 0: the caller
- * measures them with stream_photons_from_gain (g in the scaled frames'
- * units; one extra read of the cube).  stream_read_noise_adu: the read
- * noise per pixel in the scaled frames' units, 0 when unknown or when the
- * frames are not photon counts. */
+/* Photon statistics (pipeline_photons.c).  stream_photon_stats: photons
+ * per frame and g (ADU per photon, in s's scaled units) from the options,
+ * else the header (SIMPHOT/SIMGAIN; a camera's GAIN alone: the photons
+ * are the cleaned frames' mean flux over g, one extra read of the cube);
+ * both 0 when unknown or when the caller says the frames are not photon
+ * counts.  *src says where they came from (PHOT_*, header RECPHSRC).  A
+ * photon count without a gain leaves g = 0 (sequence_powspec measures it).
+ * stream_read_noise_adu: the read noise per pixel in s's scaled units, 0
+ * when unknown or when the frames are not photon counts. */
 enum { PHOT_NONE, PHOT_OPTION, PHOT_SIMPHOT, PHOT_GAIN };
-int photon_params(const pipeline_opts *o, const cube_meta *m, double *photons, double *g);
-int stream_photons_from_gain(stream *s, double g, double *photons, sl_err *err);
+int stream_photon_stats(stream *s, const pipeline_opts *o, double *photons,
+                        double *g, int *src, sl_err *err);
 double stream_read_noise_adu(const stream *s, double photons);
 
 /* The PIPE_SKIP_* bits a run applies (o->skips, or its default). */

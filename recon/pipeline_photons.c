@@ -24,9 +24,9 @@ static double header_gain_e_adu(const cube_meta *m)
 
 /* Photon statistics: the caller's, else the simulator's header.  A gain
  * without a photon count (camera cubes: GAIN, no SIMPHOT) returns
- * PHOT_GAIN with *photons = 0: the caller measures the mean flux and
- * divides (stream_photons_from_gain).  One photon = one e-. */
-int photon_params(const pipeline_opts *o, const cube_meta *m,
+ * PHOT_GAIN with *photons = 0, to be measured from the mean flux
+ * (stream_photons_from_gain).  One photon = one e-. */
+static int photon_params(const pipeline_opts *o, const cube_meta *m,
                          double *photons, double *g)
 {
     double sp = 0, ge = header_gain_e_adu(m);
@@ -62,7 +62,7 @@ static int flux_add(void *h, const float *f)
  * has removed bias and sky) over g.  Cost: one extra read of the cube,
  * ~0.1 ms per 200^2 frame; no allocation.  0 when the flux is not
  * positive (no light: the photon model does not apply). */
-int stream_photons_from_gain(stream *s, double g, double *photons,
+static int stream_photons_from_gain(stream *s, double g, double *photons,
                                     sl_err *err)
 {
     double acc[3] = {(double)s->w * s->h, 0, 0};
@@ -70,6 +70,18 @@ int stream_photons_from_gain(stream *s, double g, double *photons,
     *photons = 0;
     if (rc == SL_OK && acc[2] > 0 && acc[1] > 0 && g > 0)
         *photons = acc[1] / acc[2] / g;
+    return rc;
+}
+
+/* pipeline_int.h */
+int stream_photon_stats(stream *s, const pipeline_opts *o, double *photons,
+                        double *g, int *src, sl_err *err)
+{
+    *src = photon_params(o, cube_reader_meta(s->rd), photons, g);
+    *g *= s->scale;   /* ADU per photon, in the scaled frames' units */
+    int rc = *src == PHOT_GAIN ? stream_photons_from_gain(s, *g, photons, err) : SL_OK;
+    if (!(*photons > 0))
+        *src = PHOT_NONE, *g = 0;
     return rc;
 }
 

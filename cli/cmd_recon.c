@@ -16,7 +16,7 @@
 
 typedef struct recon_args {
     char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse;
-    int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine;
+    int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine, binary;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
 
@@ -51,6 +51,67 @@ static void probe_json(JsonBuilder *b, const cube_meta *m)
     json_builder_end_object(b);
 }
 
+/* The closure-phase binary fit that `recon --binary` leaves in the header
+ * (pipeline.h, CP*); have = 0 without one. */
+typedef struct cp_fit {
+    int have, ok;
+    const char *status;
+    double sep_px, sep_err_px, pa_deg, pa_err_deg, dm_mag, dm_err_mag;
+    double ambiguous, ntriples;
+} cp_fit;
+
+static void cp_read(const cube_meta *m, cp_fit *c)
+{
+    memset(c, 0, sizeof *c);
+    c->have = cube_meta_get_str(m, "CPSTAT", &c->status) == SL_OK;
+    c->ok = c->have && !strcmp(c->status, "ok") &&
+            cube_meta_get_num(m, "CPSEP", &c->sep_px) == SL_OK &&
+            cube_meta_get_num(m, "CPPA", &c->pa_deg) == SL_OK &&
+            cube_meta_get_num(m, "CPDM", &c->dm_mag) == SL_OK;
+    cube_meta_get_num(m, "CPSEPE", &c->sep_err_px);
+    cube_meta_get_num(m, "CPPAE", &c->pa_err_deg);
+    cube_meta_get_num(m, "CPDME", &c->dm_err_mag);
+    cube_meta_get_num(m, "CPAMBIG", &c->ambiguous);
+    cube_meta_get_num(m, "CPNTRI", &c->ntriples);
+}
+
+static void cp_json(JsonBuilder *b, const cp_fit *c, double ps)
+{
+    if (!c->have)
+        return;
+    json_builder_set_member_name(b, "closure_phase");
+    json_builder_begin_object(b);
+    cli_json_str(b, "status", c->status);
+    if (c->ok) {
+        cli_json_num(b, "sep_px", c->sep_px);
+        cli_json_num(b, "sep_err_px", c->sep_err_px);
+        cli_json_num(b, "pa_deg", c->pa_deg);
+        cli_json_num(b, "pa_err_deg", c->pa_err_deg);
+        cli_json_num(b, "dm_mag", c->dm_mag);
+        cli_json_num(b, "dm_err_mag", c->dm_err_mag);
+        cli_json_num(b, "sep_arcsec", c->sep_px * ps);
+        cli_json_num(b, "triples", c->ntriples);
+        json_builder_set_member_name(b, "pa_ambiguous");
+        json_builder_add_boolean_value(b, c->ambiguous != 0);
+    }
+    json_builder_end_object(b);
+}
+
+static void cp_print(const cp_fit *c, double ps)
+{
+    if (!c->have)
+        return;
+    if (!c->ok) {
+        printf("  closure phases: no binary (%s)\n", c->status);
+        return;
+    }
+    printf("  closure phases: sep %.3f +- %.3f px", c->sep_px, c->sep_err_px);
+    if (isfinite(ps))
+        printf(" (%.4f arcsec)", c->sep_px * ps);
+    printf(", PA %.2f +- %.2f deg, dm %.3f +- %.3f mag (%.0f triples)\n",
+           c->pa_deg, c->pa_err_deg, c->dm_mag, c->dm_err_mag, c->ntriples);
+}
+
 static void recon_report(const recon_args *a, const pipeline_opts *o,
                          const pipeline_result *r, const char *input)
 {
@@ -80,6 +141,9 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
         json_builder_end_object(b);
         probe_json(b, &r->meta);
+        cp_fit cp;
+        cp_read(&r->meta, &cp);
+        cp_json(b, &cp, r->plate_scale_arcsec);
         json_builder_set_member_name(b, "frames");
         json_builder_add_int_value(b, r->nframes);
         json_builder_set_member_name(b, "width");
@@ -113,6 +177,9 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         if (cube_meta_get_str(&r->meta, "RECCHOSE", &chosen) == SL_OK &&
             cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK)
             printf("  chosen: %s (predicted 1 - c %.3f)\n", chosen, pred);
+        cp_fit cp;
+        cp_read(&r->meta, &cp);
+        cp_print(&cp, r->plate_scale_arcsec);
     }
 }
 
@@ -178,6 +245,11 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     o.wiener = a->wiener;
     o.nthreads = a->threads;
     o.refine_iters = a->refine;
+    o.closure_binary = a->binary;
+    if (a->binary && o.method != PIPE_DIRECT)
+        fprintf(stderr, "specklab recon: warning: --binary fits the direct "
+                "bispectrum's closure phases; with --method %s it does nothing\n",
+                pipeline_method_name(o.method));
     pipeline_result r;
     sl_err e = {0};
     if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
@@ -232,6 +304,7 @@ int cmd_recon(int argc, char **argv)
         {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn hot/dead pixels from the sequence first", NULL},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default 0)", "N"},
+        {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "direct: also fit a binary to the bispectrum's closure phases (header CP*; `specklab binary` reports it)", NULL},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
         {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
@@ -384,6 +457,8 @@ int cmd_binary(int argc, char **argv)
         goto free_img;
     }
     double ps = m.plate_scale_arcsec;
+    cp_fit cp; /* the bispectrum's own fit, when recon --binary left one */
+    cp_read(&m, &cp);
     if (json) {
         JsonBuilder *jb = json_builder_new();
         json_builder_begin_object(jb);
@@ -399,6 +474,7 @@ int cmd_binary(int argc, char **argv)
         cli_json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
         json_builder_set_member_name(jb, "pa_ambiguous");
         json_builder_add_boolean_value(jb, b.pa_ambiguous);
+        cp_json(jb, &cp, ps);
         json_builder_end_object(jb);
         cli_print_json(jb);
         g_object_unref(jb);
@@ -409,6 +485,7 @@ int cmd_binary(int argc, char **argv)
         printf(", PA %.2f +- %.2f deg%s, dm %.3f +- %.3f mag\n", b.pa_deg,
                b.pa_err_deg, b.pa_ambiguous ? " (or +180: equal stars)" : "",
                b.dm_mag, b.dm_err_mag);
+        cp_print(&cp, ps);
     }
     status = 0;
 free_img:

@@ -215,6 +215,7 @@ typedef struct child_report {
     int width, height, nframes, nrun;
     double r2_px, nangles, ntriples;   /* from the result's header */
     double crop_px, cutoff, rejected, pred;
+    double cp_sep, cp_pa, cp_dm;      /* CPSEP, CPPA, CPDM */
     int method_run;
     char chosen[64];
     double wall_s[BENCH_MAX_REPEAT], cpu_s[BENCH_MAX_REPEAT];
@@ -305,6 +306,10 @@ static void child_main(int fd, const char *cube, const pipeline_opts *o,
         cube_meta_get_num(&r.meta, "RECCUT", &rep->cutoff);
         cube_meta_get_num(&r.meta, "RECREJ", &rep->rejected);
         cube_meta_get_num(&r.meta, "RECPRED", &rep->pred);
+        rep->cp_sep = rep->cp_pa = rep->cp_dm = NAN;
+        cube_meta_get_num(&r.meta, "CPSEP", &rep->cp_sep);
+        cube_meta_get_num(&r.meta, "CPPA", &rep->cp_pa);
+        cube_meta_get_num(&r.meta, "CPDM", &rep->cp_dm);
         const char *str = NULL;
         rep->method_run = -1;
         if (cube_meta_get_str(&r.meta, "RECMETH", &str) == SL_OK)
@@ -420,6 +425,9 @@ int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
         t->cutoff_cyc_px = rep->cutoff;
         t->rejected = rep->rejected;
         t->pred_error = rep->pred;
+        t->cp_sep_px = rep->cp_sep;
+        t->cp_pa_deg = rep->cp_pa;
+        t->cp_dm_mag = rep->cp_dm;
         t->method_run = rep->method_run;
         snprintf(t->chosen, sizeof t->chosen, "%s", rep->chosen);
     }

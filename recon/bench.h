@@ -109,6 +109,9 @@ typedef struct bench_timing {
     double r2_px, nangles, ntriples;
     double crop_px, cutoff_cyc_px, rejected, pred_error;
     int method_run;             /* -1 when unknown */
+    /* The closure-phase binary fit (pipeline_opts.closure_binary: CPSEP,
+     * CPPA, CPDM); NAN when it did not run or found no binary. */
+    double cp_sep_px, cp_pa_deg, cp_dm_mag;
     char chosen[64];            /* "" when nothing was chosen */
 } bench_timing;
 

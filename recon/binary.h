@@ -90,7 +90,9 @@
  * bispectrum at 1000 photons reads a dm 1 companion as dm 1.5-2.0 (tsm.h,
  * Bias).  Random phase errors turn the mask's bright sidelobes
  * asymmetric, which the fit can take for a faint companion (a dm 2.5-3.5
- * "companion" 7-8 px from a reconstructed point source, README).
+ * "companion" 7-8 px from a reconstructed point source, README).  The
+ * direct bispectrum's own triples measure a binary better than its image
+ * does: closure.h fits them, starting from this fit.
  *
  * binary_plan holds double-precision FFTW plans (FFTW_ESTIMATE: one
  * measurement per image, measuring plans would cost more) and every

@@ -56,6 +56,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "closure.h"
 #include "phasor.h"
 #include "powspec.h"
 #include "status.h"
@@ -126,5 +127,11 @@ int bispec_phase(bispec *b, double *phase, unsigned char *known);
  * photon-bias-corrected mean power spectrum (the modulus ceiling).
  * Unrecovered frequencies contribute nothing.  img: w*h floats. */
 int bispec_image(bispec *b, const double *modulus, float *img);
+
+/* A binary fitted to the stored triples' closure phases (closure.h),
+ * started from init (binary_measure on this handle's image).  info may
+ * be NULL.  SL_EDATA for an equal pair or too few strong triples. */
+int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
+                  closure_fit_info *info);
 
 #endif

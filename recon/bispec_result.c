@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "bispec_int.h"
+#include "closure.h"
 #include "phasor.h"
 
 static void graph_view(const bispec *b, phasor_graph *g)
@@ -88,4 +89,19 @@ int bispec_image(bispec *b, const double *modulus, float *img)
     for (size_t i = 0; i < (size_t)w * h; i++)
         img[i] = (float)(b->cout[i] * sc);
     return SL_OK;
+}
+
+int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
+                  closure_fit_info *info)
+{
+    if (!b || !init || !out)
+        return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
+                         "bispec_binary: NULL argument");
+    if (!b->n)
+        return sl_seterr(&b->err, SL_EDATA, "bispec_binary: no frames");
+    bispec_flush(b);
+    phasor_graph g;
+    graph_view(b, &g);
+    return closure_fit_binary(&g, b->fp, b->fq, b->w, b->h, 0, init, out,
+                              info, &b->err);
 }

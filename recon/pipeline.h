@@ -9,7 +9,8 @@
  *                triangles with |u2| <= R2), phases by weighted phasor
  *                recursion, modulus from the bispectrum's own
  *                photon-corrected power spectrum, or divided by a
- *                reference (point-source) sequence's;
+ *                reference (point-source) sequence's; optionally a
+ *                binary fitted to the triples' closure phases (closure.h);
  *   tsm          Radon projections (spatial, the paper's way), 1-D
  *                bispectra per angle, filtered back projection;
  *   tsm-fourier  the same with projection spectra taken as radial slices
@@ -90,6 +91,10 @@ typedef struct pipeline_opts {
                                * below); 0: the raw bispectrum */
     double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
                                * support with PIPE_SKIP_SUPPORT */
+    int closure_binary;       /* direct: also fit a binary to the bispectrum's
+                               * closure phases (closure.h) into the header:
+                               * CPSEP, CPPA, CPDM (+E: 1-sigma errors),
+                               * CPAMBIG, CPNTRI, CPNFREQ, CPRMS, CPSTAT */
 } pipeline_opts;
 
 typedef struct pipeline_result {

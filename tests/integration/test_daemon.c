@@ -103,6 +103,9 @@ BENCH_TEST(full_run, 120, NULL, "[camera]\ngain_e_per_adu=1\nread_noise_e=2\n")
     CHECK(fabs(jd(rec, "sep_px") * DEFAULT_PLTSCALE - sep) < 1e-9, "sep_px and sep_arcsec disagree");
     CHECK(has(js(rec, "params.skips"), "reject,crop,support"), "params %s",
           jtext(jget(rec, "params")));
+    /* direct measures the binary on its bispectrum's closure phases */
+    CHECK(has(js(rec, "params.binary"), "closure-phase"), "params %s",
+          jtext(jget(rec, "params")));
     /* Photons from GAIN and the frames' flux: the fake renders 1000
      * photons per ms for the default 10 ms; the 64x64 sensor loses some
      * of the wings. */

@@ -417,6 +417,69 @@ free_ctx:
     return status;
 }
 
+static void binary_report(const binary_result *b, const cp_fit *cp, double ps,
+                          int json)
+{
+    if (json) {
+        JsonBuilder *jb = json_builder_new();
+        json_builder_begin_object(jb);
+        cli_json_num(jb, "sep_px", b->sep_px);
+        cli_json_num(jb, "sep_err_px", b->sep_err_px);
+        cli_json_num(jb, "pa_deg", b->pa_deg);
+        cli_json_num(jb, "pa_err_deg", b->pa_err_deg);
+        cli_json_num(jb, "dm_mag", b->dm_mag);
+        cli_json_num(jb, "dm_err_mag", b->dm_err_mag);
+        cli_json_num(jb, "flux_ratio", b->flux_ratio);
+        cli_json_num(jb, "err_inflation", b->err_inflation);
+        cli_json_num(jb, "sep_arcsec", b->sep_px * ps);
+        cli_json_num(jb, "sep_err_arcsec", b->sep_err_px * ps);
+        json_builder_set_member_name(jb, "pa_ambiguous");
+        json_builder_add_boolean_value(jb, b->pa_ambiguous);
+        cp_json(jb, cp, ps);
+        json_builder_end_object(jb);
+        cli_print_json(jb);
+        g_object_unref(jb);
+    } else {
+        printf("sep %.3f +- %.3f px", b->sep_px, b->sep_err_px);
+        if (isfinite(ps))
+            printf(" (%.4f +- %.4f arcsec)", b->sep_px * ps, b->sep_err_px * ps);
+        printf(", PA %.2f +- %.2f deg%s, dm %.3f +- %.3f mag\n", b->pa_deg,
+               b->pa_err_deg, b->pa_ambiguous ? " (or +180: equal stars)" : "",
+               b->dm_mag, b->dm_err_mag);
+        cp_print(cp, ps);
+    }
+}
+
+/* A cube: reconstruct it with direct (in memory, nothing written) and
+ * measure the image and the bispectrum's closure phases. */
+static int binary_of_cube(const char *path, int json)
+{
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.method = PIPE_DIRECT;
+    o.closure_binary = 1;
+    pipeline_result r;
+    sl_err e = {0};
+    const char *paths[] = {path};
+    if (pipeline_run(paths, 1, &o, &r, &e) != SL_OK) {
+        fprintf(stderr, "specklab binary: %s\n", e.msg);
+        return 1;
+    }
+    binary_result b;
+    int status = 0;
+    if (metrics_binary(r.image, r.width, r.height, &b) != SL_OK) {
+        fprintf(stderr, "specklab binary: no second component found in the "
+                "direct reconstruction of %s\n", path);
+        status = 1;
+    } else {
+        cp_fit cp;
+        cp_read(&r.meta, &cp);
+        binary_report(&b, &cp, r.plate_scale_arcsec, json);
+    }
+    pipeline_result_clear(&r);
+    return status;
+}
+
 int cmd_binary(int argc, char **argv)
 {
     char *ext = NULL;
@@ -427,18 +490,31 @@ int cmd_binary(int argc, char **argv)
         {"ext", 0, 0, G_OPTION_ARG_STRING, &ext, "read the image from this extension", "EXT"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
-    GOptionContext *ctx = g_option_context_new("IMAGE.fits - separation, position angle and dm of a binary");
+    GOptionContext *ctx = g_option_context_new("IMAGE.fits|CUBE.fits - separation, position angle and dm of a binary");
     g_option_context_add_main_entries(ctx, entries, NULL);
-    g_option_context_set_description(ctx, "PA is measured from +y (north) towards -x (east), fainter relative to brighter.");
+    g_option_context_set_description(ctx,
+        "PA is measured from +y (north) towards -x (east), fainter relative to brighter.\n"
+        "An image is fitted as it is (recon/binary.h); one that `recon -m direct\n"
+        "--binary` made also reports its closure-phase fit (recon/closure.h).  A cube\n"
+        "(NAXIS3 > 1) is first reconstructed with direct, in memory, and gets both.");
     if (!cli_parse(ctx, &argc, &argv))
         goto free_ctx;
     if (argc != 2) {
-        fprintf(stderr, "specklab binary: need one image\n");
+        fprintf(stderr, "specklab binary: need one image or cube\n");
         goto free_ctx;
     }
     status = 1;
     sl_err e = {0};
     const char *paths[] = {argv[1]};
+    if (!ext) {
+        cube_reader *cr = NULL;
+        int nfr = cube_reader_open(&cr, paths, 1, 0, &e) == SL_OK ? cube_reader_nframes(cr) : 0;
+        cube_reader_free(cr);
+        if (nfr > 1) {
+            status = binary_of_cube(argv[1], json);
+            goto free_ctx;
+        }
+    }
     int rc = ext ? cube_read_ext(&img, argv[1], ext, &e) : cube_read(&img, &m, paths, 1, 0, &e);
     if (rc == SL_OK && ext) {
         cube_reader *r = NULL;
@@ -456,37 +532,9 @@ int cmd_binary(int argc, char **argv)
         fprintf(stderr, "specklab binary: no second component found in %s\n", argv[1]);
         goto free_img;
     }
-    double ps = m.plate_scale_arcsec;
     cp_fit cp; /* the bispectrum's own fit, when recon --binary left one */
     cp_read(&m, &cp);
-    if (json) {
-        JsonBuilder *jb = json_builder_new();
-        json_builder_begin_object(jb);
-        cli_json_num(jb, "sep_px", b.sep_px);
-        cli_json_num(jb, "sep_err_px", b.sep_err_px);
-        cli_json_num(jb, "pa_deg", b.pa_deg);
-        cli_json_num(jb, "pa_err_deg", b.pa_err_deg);
-        cli_json_num(jb, "dm_mag", b.dm_mag);
-        cli_json_num(jb, "dm_err_mag", b.dm_err_mag);
-        cli_json_num(jb, "flux_ratio", b.flux_ratio);
-        cli_json_num(jb, "err_inflation", b.err_inflation);
-        cli_json_num(jb, "sep_arcsec", b.sep_px * ps);
-        cli_json_num(jb, "sep_err_arcsec", b.sep_err_px * ps);
-        json_builder_set_member_name(jb, "pa_ambiguous");
-        json_builder_add_boolean_value(jb, b.pa_ambiguous);
-        cp_json(jb, &cp, ps);
-        json_builder_end_object(jb);
-        cli_print_json(jb);
-        g_object_unref(jb);
-    } else {
-        printf("sep %.3f +- %.3f px", b.sep_px, b.sep_err_px);
-        if (isfinite(ps))
-            printf(" (%.4f +- %.4f arcsec)", b.sep_px * ps, b.sep_err_px * ps);
-        printf(", PA %.2f +- %.2f deg%s, dm %.3f +- %.3f mag\n", b.pa_deg,
-               b.pa_err_deg, b.pa_ambiguous ? " (or +180: equal stars)" : "",
-               b.dm_mag, b.dm_err_mag);
-        cp_print(&cp, ps);
-    }
+    binary_report(&b, &cp, m.plate_scale_arcsec, json);
     status = 0;
 free_img:
     seq_free(img);

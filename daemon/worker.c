@@ -137,10 +137,11 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
      * speckle cloud keeps it out (a dm 2 companion at 1e4 photons, 2 e-:
      * lost by TSM on the whole 200^2 frame, found on the crop). */
     po.skips = w->cfg->skips;
-    /* direct also fits the binary to its bispectrum's closure phases
-     * (recon/closure.h): 8 of 8 seeds within 0.1 px / 0.5 deg / 0.1 mag
-     * at 5 lambda/D, dm 2, where the image fit met 3 of 8. */
-    po.closure_binary = po.method == PIPE_DIRECT;
+    /* The binary is also fitted to the bispectrum's closure phases
+     * (recon/closure.h; direct's 2-D or TSM's 1-D): 8 of 8 seeds within
+     * 0.1 px / 0.5 deg / 0.1 mag at 5 lambda/D, dm 2 with either, where
+     * the image fits met 3 of 8 (direct) and 0 of 4 (TSM-Fourier). */
+    po.closure_binary = 1;
     catalog_recon_init(rec);
     rec->started_ms = catalog_now_ms();
     if ((rc = pipeline_run(&cube, 1, &po, &res, e)) != SL_OK)

@@ -19,8 +19,8 @@ typedef struct kept {
 typedef struct fitctx {
     const kept *t;
     long n;
-    const int32_t *fp, *fq;
-    int nf, w, h;
+    const double *k; /* 2 nf: each frequency's (kx, ky), radians per px */
+    int nf;
     double *a;  /* nf: arg V(u_j) */
     double *gr; /* NP nf: d arg V / d (dx, dy, ln r) */
     int skip;   /* jackknife group left out, -1 none */
@@ -32,7 +32,7 @@ static void model(fitctx *c, const double th[NP])
 {
     double r = exp(th[2]);
     for (int j = 0; j < c->nf; j++) {
-        double kx = 2.0 * M_PI * c->fp[j] / c->w, ky = 2.0 * M_PI * c->fq[j] / c->h;
+        double kx = c->k[2 * j], ky = c->k[2 * j + 1];
         double ph = kx * th[0] + ky * th[1];
         double zr = r * cos(ph), zi = -r * sin(ph);
         double vr = 1.0 + zr, vi = zi, v2 = vr * vr + vi * vi;
@@ -160,8 +160,7 @@ static double lm(fitctx *c, double th[NP], double *A, int max_steps,
 /* Keep the triples with |B| >= thr: counts when out is NULL.  *mx (may
  * be NULL) gets the largest |B| seen. */
 static long keep_triples(const phasor_graph *g, const int32_t *fp,
-                         const int32_t *fq, double thr, kept *out,
-                         unsigned char *used, double *mx)
+                         const int32_t *fq, double thr, kept *out, double *mx)
 {
     long n = 0;
     for (int j = 1; j < g->nfreq; j++)
@@ -181,7 +180,6 @@ static long keep_triples(const phasor_graph *g, const int32_t *fp,
                     ang += M_PI;
                 int grp = (int)(ang / M_PI * CLOSURE_JK) % CLOSURE_JK;
                 out[n] = (kept){l1, l2, j, (float)atan2(bi, br), (float)m, grp};
-                used[l1 % g->nfreq] = used[l2 % g->nfreq] = used[j] = 1;
             }
             n++;
         }
@@ -230,38 +228,34 @@ static void fill_result(const binary_result *init, const double th[NP],
     out->pa_ambiguous = 1.0 - r < 2.0 * out->flux_ratio_err || r > 1.0 - 1e-6;
 }
 
-int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
-                       const int32_t *fq, int w, int h, double rel_min,
-                       const binary_result *init, binary_result *out,
-                       closure_fit_info *info, sl_err *err)
+static int refuse_equal(const binary_result *init, sl_err *err)
 {
-    if (!g || !fp || !fq || !init || !out || g->nfreq < 2 || w < 2 || h < 2)
-        return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
-    if (init->pa_ambiguous || !(init->flux_ratio > 0) || !(init->sep_px > 0))
-        return sl_seterr(err, SL_EDATA, "closure fit: an equal pair (dm %.2f "
-                         "+- %.2f): closure phases cannot tell d from -d",
-                         init->dm_mag, init->dm_err_mag);
-    int nf = g->nfreq, rc = SL_OK;
-    double mx = 0;
-    keep_triples(g, fp, fq, INFINITY, NULL, NULL, &mx);
-    double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
-    long n = keep_triples(g, fp, fq, thr, NULL, NULL, NULL);
-    if (n < 16)
-        return sl_seterr(err, SL_EDATA, "closure fit: only %ld triples "
-                         "above %.3g of the strongest", n, thr);
-    kept *t = malloc((size_t)n * sizeof *t);
-    double *a = malloc((size_t)nf * (NP + 1) * sizeof *a);
+    return sl_seterr(err, SL_EDATA, "closure fit: an equal pair (dm %.2f +- "
+                     "%.2f): closure phases cannot tell d from -d",
+                     init->dm_mag, init->dm_err_mag);
+}
+
+static int is_equal_pair(const binary_result *init)
+{
+    return init->pa_ambiguous || !(init->flux_ratio > 0) || !(init->sep_px > 0);
+}
+
+/* The fit proper, on n kept triples over nf frequencies with k-vectors kv
+ * (2 nf doubles, the model's a and gr scratch after them: 6 nf in all). */
+static int fit_kept(const kept *t, long n, double *kv, int nf,
+                    const binary_result *init, binary_result *out,
+                    closure_fit_info *info, sl_err *err)
+{
+    int rc = SL_OK;
     unsigned char *used = calloc((size_t)nf, 1);
-    if (!t || !a || !used) {
-        rc = sl_seterr(err, SL_ENOMEM, "closure fit: out of memory "
-                       "(%ld triples)", n);
-        goto free_buffers;
-    }
-    keep_triples(g, fp, fq, thr, t, used, NULL);
+    if (!used)
+        return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
+    for (long i = 0; i < n; i++)
+        used[t[i].l1 % nf] = used[t[i].l2 % nf] = used[t[i].j] = 1;
     int nused = 0;
     for (int j = 0; j < nf; j++)
         nused += used[j];
-    fitctx c = {t, n, fp, fq, nf, w, h, a, a + nf, -1};
+    fitctx c = {t, n, kv, nf, kv + 2 * (size_t)nf, kv + 3 * (size_t)nf, -1};
     double lr0 = log(fmin(fmax(init->flux_ratio, 1e-3), 0.9));
     double best[NP] = {init->dx_px, init->dy_px, lr0};
     double A[NP * NP], Abest[NP * NP] = {0}, fbest = INFINITY;
@@ -284,7 +278,7 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
     if (!inv3(Abest, Ci)) {
         rc = sl_seterr(err, SL_EDATA, "closure fit: singular normal "
                        "equations (%ld triples)", n);
-        goto free_buffers;
+        goto free_used;
     }
     /* Residual variance per unit weight, and each frequency (not each
      * triple) counted as one measurement (closure.h, Limits). */
@@ -317,9 +311,112 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
     fill_result(init, best, Ci, infl, nused, out);
     if (info)
         *info = (closure_fit_info){n, nused, sqrt(fbest / wsum), steps};
+free_used:
+    free(used);
+    return rc;
+}
+
+int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
+                       const int32_t *fq, int w, int h, double rel_min,
+                       const binary_result *init, binary_result *out,
+                       closure_fit_info *info, sl_err *err)
+{
+    if (!g || !fp || !fq || !init || !out || g->nfreq < 2 || w < 2 || h < 2)
+        return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
+    if (is_equal_pair(init))
+        return refuse_equal(init, err);
+    int nf = g->nfreq, rc;
+    double mx = 0;
+    keep_triples(g, fp, fq, INFINITY, NULL, &mx);
+    double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
+    long n = keep_triples(g, fp, fq, thr, NULL, NULL);
+    if (n < 16)
+        return sl_seterr(err, SL_EDATA, "closure fit: only %ld triples "
+                         "above %.3g of the strongest", n, thr);
+    kept *t = malloc((size_t)n * sizeof *t);
+    double *k = malloc((size_t)nf * 6 * sizeof *k);
+    if (!t || !k) {
+        rc = sl_seterr(err, SL_ENOMEM, "closure fit: out of memory "
+                       "(%ld triples)", n);
+        goto free_buffers;
+    }
+    keep_triples(g, fp, fq, thr, t, NULL);
+    for (int j = 0; j < nf; j++) {
+        k[2 * j] = 2.0 * M_PI * fp[j] / w;
+        k[2 * j + 1] = 2.0 * M_PI * fq[j] / h;
+    }
+    rc = fit_kept(t, n, k, nf, init, out, info, err);
 free_buffers:
     free(t);
-    free(a);
-    free(used);
+    free(k);
+    return rc;
+}
+
+/* TSM's pairs at or above thr (counts when out is NULL; *mx: the largest). */
+static long keep_1d(int nang, int nf, const int *off, const int *len, int np,
+                    const double *bre, const double *bim, double thr,
+                    kept *out, double *mx)
+{
+    long n = 0;
+    for (int k = 0; k < nang; k++)
+        for (int u1 = 1; u1 < nf; u1++)
+            for (int u2 = 1; u2 <= len[u1]; u2++) {
+                size_t q = (size_t)k * np + off[u1] + u2 - 1;
+                double m = sqrt(bre[q] * bre[q] + bim[q] * bim[q]);
+                if (mx && m > *mx)
+                    *mx = m;
+                if (!(m >= thr))
+                    continue;
+                if (out) {
+                    int b = k * nf;
+                    out[n] = (kept){b + u1, b + u2, b + u1 + u2,
+                                    (float)atan2(bim[q], bre[q]), (float)m,
+                                    k * CLOSURE_JK / nang};
+                }
+                n++;
+            }
+    return n;
+}
+
+int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
+                          const int *len, int np, const double *bre,
+                          const double *bim, double rel_min,
+                          const binary_result *init, binary_result *out,
+                          closure_fit_info *info, sl_err *err)
+{
+    if (nang < 1 || nf < 3 || nproj < 2 || !off || !len || np < 1 || !bre ||
+        !bim || !init || !out)
+        return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
+    if (is_equal_pair(init))
+        return refuse_equal(init, err);
+    double mx = 0;
+    keep_1d(nang, nf, off, len, np, bre, bim, INFINITY, NULL, &mx);
+    double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
+    long n = keep_1d(nang, nf, off, len, np, bre, bim, thr, NULL, NULL);
+    if (n < 16)
+        return sl_seterr(err, SL_EDATA, "closure fit: only %ld pairs above "
+                         "%.3g of the strongest", n, thr);
+    int nt = nang * nf, rc;
+    kept *t = malloc((size_t)n * sizeof *t);
+    double *k = malloc((size_t)nt * 6 * sizeof *k);
+    if (!t || !k) {
+        rc = sl_seterr(err, SL_ENOMEM, "closure fit: out of memory "
+                       "(%ld pairs)", n);
+        goto free_buffers;
+    }
+    keep_1d(nang, nf, off, len, np, bre, bim, thr, t, NULL);
+    /* Fourier slice: frequency j of angle k is the 2-D rho_j n_k. */
+    for (int a = 0; a < nang; a++) {
+        double th = M_PI * a / nang;
+        for (int j = 0; j < nf; j++) {
+            double rho = 2.0 * M_PI * j / nproj;
+            k[2 * (a * nf + j)] = rho * cos(th);
+            k[2 * (a * nf + j) + 1] = rho * sin(th);
+        }
+    }
+    rc = fit_kept(t, n, k, nt, init, out, info, err);
+free_buffers:
+    free(t);
+    free(k);
     return rc;
 }

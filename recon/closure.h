@@ -69,4 +69,19 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
                        const binary_result *init, binary_result *out,
                        closure_fit_info *info, sl_err *err);
 
+/* The same on TSM's 1-D bispectra (tsm_accum.h's sums): nang angles
+ * theta_a = a 180/nang deg from +x towards +y, nf frequencies j/nproj
+ * cycles/px along n = (cos, sin) (radon.h), and per angle np pairs q =
+ * off[u1] + u2 - 1 (u2 = 1..len[u1]) of P(u1) P(u2) conj P(u1 + u2)
+ * summed in bre/bim (nang x np; any positive scale).  By the Fourier-slice
+ * theorem each pair is a triple of the 2-D spectrum on the line at
+ * theta_a, so the model is the same; the jackknife groups are sectors of
+ * theta.  The sums are raw: with photon noise their bias shrinks the
+ * closure phases and the companion reads faint (tsm.h, Bias). */
+int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
+                          const int *len, int np, const double *bre,
+                          const double *bim, double rel_min,
+                          const binary_result *init, binary_result *out,
+                          closure_fit_info *info, sl_err *err);
+
 #endif

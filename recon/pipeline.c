@@ -234,18 +234,21 @@ static int target_mtf(const char *path, int w, int h, double *mtf,
     return SL_OK;
 }
 
-/* The binary fitted to the bispectrum's closure phases (closure.h), from
- * binary_measure on the image, into CP* keywords.  Failing to find a
- * binary is a result, not an error: CPSTAT says why. */
-static void closure_keys(bispec *b, const float *img, int w, int h, cube_meta *m)
+/* The binary fitted to the closure phases (closure.h) of direct's
+ * bispectrum b or of TSM's 1-D bispectra t, from binary_measure on the
+ * image, into CP* keywords.  Failing to find a binary is a result, not an
+ * error: CPSTAT says why. */
+static void closure_keys(bispec *b, tsm *t, const float *img, int w, int h,
+                         cube_meta *m)
 {
     binary_result init, cp;
     closure_fit_info info;
     sl_err e = {0};
     int rc = binary_measure(img, w, h, &init, &e);
     const char *why = e.msg;
-    if (rc == SL_OK && (rc = bispec_binary(b, &init, &cp, &info)) != SL_OK)
-        why = bispec_errmsg(b);
+    if (rc == SL_OK && (rc = b ? bispec_binary(b, &init, &cp, &info)
+                               : tsm_binary(t, &init, &cp, &info)) != SL_OK)
+        why = b ? bispec_errmsg(b) : tsm_errmsg(t);
     if (rc != SL_OK) {
         char msg[69]; /* a FITS string value holds 68 characters */
         size_t k = strlen(why) < 68 ? strlen(why) : 68;
@@ -338,7 +341,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         goto free_all;
     }
     if (o->closure_binary)
-        closure_keys(b, img, s->w, s->h, m);
+        closure_keys(b, NULL, img, s->w, s->h, m);
     cube_meta_set_num(m, "RECR2", bo.r2_px, "[px] bispectrum |u2| radius");
     cube_meta_set_num(m, "RECRCUT", rcut, "[px] measured Fourier cut-off");
     cube_meta_set_num(m, "RECNTRI", (double)bispec_ntriples(b), "closure triangles stored");
@@ -446,6 +449,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         sl_seterr(err, rc, "%s", tsm_errmsg(t));
         goto free_all;
     }
+    if (o->closure_binary)
+        closure_keys(NULL, t, img, s->w, s->h, m);
     cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
     cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
                       "[cyc/px] TSM cut-off");

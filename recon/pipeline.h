@@ -91,8 +91,9 @@ typedef struct pipeline_opts {
                                * below); 0: the raw bispectrum */
     double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
                                * support with PIPE_SKIP_SUPPORT */
-    int closure_binary;       /* direct: also fit a binary to the bispectrum's
-                               * closure phases (closure.h) into the header:
+    int closure_binary;       /* also fit a binary to the closure phases of
+                               * direct's bispectrum or TSM's 1-D ones
+                               * (closure.h) into the header:
                                * CPSEP, CPPA, CPDM (+E: 1-sigma errors),
                                * CPAMBIG, CPNTRI, CPNFREQ, CPRMS, CPSTAT */
 } pipeline_opts;

@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "closure.h"
 #include "rng.h"
 #include "tsm_int.h"
 
@@ -337,6 +338,20 @@ int tsm_mean_projection(tsm *t, float *proj)
     return st ? sl_seterr(&t->err, st, "tsm_mean_projection: %s", radon_errmsg(t->rad)) : SL_OK;
 }
 
+/* Element q of angle k's row (pair u1, u2) of the mean bispectrum,
+ * photon-bias-corrected when the gain g is known (Wirnitzer, 1-D). */
+static void corrected_at(const tsm *t, int k, int u1, int u2, double sbar,
+                         double g, double lv, double *re, double *im)
+{
+    double n = t->nframes;
+    size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1, i = (size_t)k * t->nf;
+    *re = t->bre[q] / n + 2 * g * g * sbar;
+    if (g > 0)
+        *re -= g * (tsm_photon_power(t, i + u1, sbar, g, lv) + tsm_photon_power(t, i + u2, sbar, g, lv) +
+                    tsm_photon_power(t, i + u1 + u2, sbar, g, lv));
+    *im = t->bim[q] / n;
+}
+
 int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
 {
     if (k < 0 || k >= t->nang || u1 < 1 || u1 >= t->nf - 1 || u2 < 1 ||
@@ -345,13 +360,34 @@ int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_bispectrum: no frames");
     tsm_sync_sums(t);
-    double sbar, g, lv, n = t->nframes;
+    double sbar, g, lv;
     tsm_bias_terms(t, &sbar, &g, &lv);
-    size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1, i = (size_t)k * t->nf;
-    *re = t->bre[q] / n + 2 * g * g * sbar;
-    if (g > 0)
-        *re -= g * (tsm_photon_power(t, i + u1, sbar, g, lv) + tsm_photon_power(t, i + u2, sbar, g, lv) +
-                    tsm_photon_power(t, i + u1 + u2, sbar, g, lv));
-    *im = t->bim[q] / n;
+    corrected_at(t, k, u1, u2, sbar, g, lv, re, im);
     return SL_OK;
+}
+
+int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
+               closure_fit_info *info)
+{
+    if (!t || !init || !out)
+        return sl_seterr(t ? &t->err : NULL, SL_EINVAL, "tsm_binary: NULL argument");
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_binary: no frames");
+    size_t n = (size_t)t->nang * t->np;
+    double *b = malloc(2 * n * sizeof *b);
+    if (!b)
+        return sl_seterr(&t->err, SL_ENOMEM, "tsm_binary: out of memory");
+    tsm_sync_sums(t);
+    double sbar, g, lv;
+    tsm_bias_terms(t, &sbar, &g, &lv);
+    for (int k = 0; k < t->nang; k++)
+        for (int u1 = 1; u1 < t->nf; u1++)
+            for (int u2 = 1; u2 <= t->len[u1]; u2++) {
+                size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1;
+                corrected_at(t, k, u1, u2, sbar, g, lv, &b[q], &b[n + q]);
+            }
+    int rc = closure_fit_binary_1d(t->nang, t->nf, t->ns, t->off, t->len,
+                                   t->np, b, b + n, 0, init, out, info, &t->err);
+    free(b);
+    return rc;
 }

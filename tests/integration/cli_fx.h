@@ -438,17 +438,19 @@ static void sd_stop(sd *s)
 
 /* Run fn(argv) with stdout and stderr in files; out and err (g_free) get
  * their text.  Returns fn's exit status. */
-static int run_cmd(const sd *s, int (*fn)(int, char **), char **out, char **err, ...)
+/* Run a command in-process with its output captured (in s->dir); sock:
+ * append --socket s->path (the commands that talk to the daemon). */
+static int run_cmdv(const sd *s, int sock, int (*fn)(int, char **), char **out,
+                    char **err, va_list ap)
 {
     char *v[32];
     int n = 0;
-    va_list ap;
-    va_start(ap, err);
     for (const char *a; n < 30 && (a = va_arg(ap, const char *));)
         v[n++] = g_strdup(a);
-    va_end(ap);
-    v[n++] = g_strdup("--socket");
-    v[n++] = g_strdup(s->path);
+    if (sock) {
+        v[n++] = g_strdup("--socket");
+        v[n++] = g_strdup(s->path);
+    }
     v[n] = NULL;
     char *argv_copy[32];
     memcpy(argv_copy, v, sizeof v); /* GOption reorders argv */
@@ -471,6 +473,25 @@ static int run_cmd(const sd *s, int (*fn)(int, char **), char **out, char **err,
         g_free(v[i]);
     g_free(fo);
     g_free(fe);
+    return rc;
+}
+
+static int run_cmd(const sd *s, int (*fn)(int, char **), char **out, char **err, ...)
+{
+    va_list ap;
+    va_start(ap, err);
+    int rc = run_cmdv(s, 1, fn, out, err, ap);
+    va_end(ap);
+    return rc;
+}
+
+/* The same for the commands that need no daemon (sim, recon, binary). */
+static int run_local(const sd *s, int (*fn)(int, char **), char **out, char **err, ...)
+{
+    va_list ap;
+    va_start(ap, err);
+    int rc = run_cmdv(s, 0, fn, out, err, ap);
+    va_end(ap);
     return rc;
 }
 

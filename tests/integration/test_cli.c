@@ -18,6 +18,7 @@
 #include <sys/wait.h>
 #include <time.h>
 
+#include "cli.h"
 #include "cli_fx.h"
 #include "tcheck.h"
 
@@ -420,8 +421,66 @@ TEST(real_daemon_failed_run_and_two_clients)
     CHECK(rc == 1 && failed, "%s", msg);
 }
 
+/* `specklab binary` on a cube reconstructs it (direct, in memory) and
+ * reports the image fit and the closure-phase fit; `recon -m direct
+ * --binary` leaves the same closure fit in the image's header, which
+ * `binary` on that image reports again.  Truth: the simulator's binary
+ * (0.6", PA 140 deg, dm 1.5; the bounds are loose for 40 frames of 96^2). */
+TEST(binary_of_a_cube_and_closure_keywords)
+{
+    sd s;
+    CHECK(sd_start(&s) == 0, "stub daemon");
+    char *cube = g_strdup_printf("%s/b.fits", s.dir), *img = g_strdup_printf("%s/r.fits", s.dir);
+    char *out = NULL, *err = NULL, *out2 = NULL, *err2 = NULL;
+    int rc = run_local(&s, cmd_sim, &out, &err, "specklab sim", "--scene", "binary",
+                       "--sep-arcsec", "0.6", "--pa-deg", "140", "--dm", "1.5", "--size", "96",
+                       "--frames", "40", "-q", "-o", cube, NULL);
+    g_free(out);
+    g_free(err);
+    out = err = NULL;
+    int rc2 = rc ? rc : run_local(&s, cmd_binary, &out, &err, "specklab binary", cube, "--json", NULL);
+    int rc3 = rc2 ? rc2 : run_local(&s, cmd_recon, &out2, &err2, "specklab recon", cube, "-m",
+                                    "direct", "--binary", "-q", "-o", img, NULL);
+    g_free(out2);
+    g_free(err2);
+    out2 = err2 = NULL;
+    int rc4 = rc3 ? rc3 : run_local(&s, cmd_binary, &out2, &err2, "specklab binary", img, "--json", NULL);
+    JsonNode *a = parse(out), *b = parse(out2);
+    JsonObject *ca = NULL, *cb = NULL;
+    if (a && JSON_NODE_HOLDS_OBJECT(a))
+        ca = dcmd_obj(json_node_get_object(a), "closure_phase");
+    if (b && JSON_NODE_HOLDS_OBJECT(b))
+        cb = dcmd_obj(json_node_get_object(b), "closure_phase");
+    double sep = ca ? dcmd_num(ca, "sep_arcsec") : NAN, pa = ca ? dcmd_num(ca, "pa_deg") : NAN;
+    double dm = ca ? dcmd_num(ca, "dm_mag") : NAN;
+    int ok = ca && !g_strcmp0(dcmd_str(ca, "status"), "ok");
+    int same = ca && cb && fabs(dcmd_num(cb, "sep_px") - dcmd_num(ca, "sep_px")) < 1e-6 &&
+               fabs(dcmd_num(cb, "dm_mag") - dcmd_num(ca, "dm_mag")) < 1e-6;
+    char msg[700];
+    snprintf(msg, sizeof msg, "exits %d %d %d %d; cube: %.300s %.100s; image: %.200s", rc, rc2,
+             rc3, rc4, out, err, out2);
+    if (a)
+        json_node_unref(a);
+    if (b)
+        json_node_unref(b);
+    g_free(out);
+    g_free(err);
+    g_free(out2);
+    g_free(err2);
+    unlink(cube);
+    unlink(img);
+    g_free(cube);
+    g_free(img);
+    sd_stop(&s);
+    CHECK(rc == 0 && rc2 == 0 && rc3 == 0 && rc4 == 0 && ok, "%s", msg);
+    CHECK(fabs(sep - 0.6) < 0.02 * 0.6 && fabs(pa - 140) < 1 && fabs(dm - 1.5) < 0.15,
+          "closure: sep %.4f\" PA %.2f dm %.3f; %s", sep, pa, dm, msg);
+    CHECK(same, "the image's CP* keywords differ from the cube's fit: %s", msg);
+}
+
 TC_MAIN(TC_CASE(binary_bench_json_one_row_per_run), TC_CASE(binary_bench_table_and_failed_run),
         TC_CASE(binary_bench_unknown_screen_starts_nothing), TC_CASE(runs_list_passes_filters),
         TC_CASE(runs_show_prefix_and_not_found), TC_CASE(export_copies_files_and_sidecar),
         TC_CASE(recon_run_new_reconstruction_and_copy), TC_CASE(not_running_and_run_id_shape),
-        TC_CASE(real_daemon_queries_and_errors), TC_CASE(real_daemon_failed_run_and_two_clients))
+        TC_CASE(real_daemon_queries_and_errors), TC_CASE(real_daemon_failed_run_and_two_clients),
+        TC_CASE(binary_of_a_cube_and_closure_keywords))

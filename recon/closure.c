@@ -9,6 +9,7 @@
 #define MAX_STEPS 40
 #define CLOSURE_JK 8  /* jackknife groups */
 #define JK_STEPS 5    /* LM steps per jackknife refit (from the fit) */
+#define MAX_DSTEP_PX 1.0 /* largest LM step of d */
 
 typedef struct kept {
     int32_t l1, l2, j; /* legs (phasor.h) and target */
@@ -139,6 +140,13 @@ static double lm(fitctx *c, double th[NP], double *A, int max_steps,
                 d += Mi[p * NP + q] * b[q];
             t2[p] = th[p] + d;
         }
+        /* A trust region of MAX_DSTEP_PX on d: the closure cost has a
+         * local minimum about every pixel of d, and an unbounded step
+         * from a poor start can leave the field (seen: 113 px away). */
+        double dd = hypot(t2[0] - th[0], t2[1] - th[1]);
+        if (dd > MAX_DSTEP_PX)
+            for (int p = 0; p < NP; p++)
+                t2[p] = th[p] + (t2[p] - th[p]) * MAX_DSTEP_PX / dd;
         /* r stays in (1e-4, 1e4): beyond that the fit has lost the pair. */
         t2[2] = fmin(fmax(t2[2], -9.2), 9.2);
         double f2 = cost(c, t2, NULL, NULL);
@@ -242,7 +250,7 @@ static int is_equal_pair(const binary_result *init)
 
 /* The fit proper, on n kept triples over nf frequencies with k-vectors kv
  * (2 nf doubles, the model's a and gr scratch after them: 6 nf in all). */
-static int fit_kept(const kept *t, long n, double *kv, int nf,
+static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
                     const binary_result *init, binary_result *out,
                     closure_fit_info *info, sl_err *err)
 {
@@ -270,6 +278,12 @@ static int fit_kept(const kept *t, long n, double *kv, int nf,
             memcpy(Abest, A, sizeof A);
             steps = st;
         }
+    }
+    double sep = hypot(best[0], best[1]);
+    if (!(sep >= 0.5 && sep <= max_sep)) {
+        rc = sl_seterr(err, SL_EDATA, "closure fit: no binary (separation "
+                       "%.3g px, outside 0.5..%.0f px)", sep, max_sep);
+        goto free_used;
     }
     double wsum = 0;
     for (long i = 0; i < n; i++)
@@ -345,7 +359,7 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
         k[2 * j] = 2.0 * M_PI * fp[j] / w;
         k[2 * j + 1] = 2.0 * M_PI * fq[j] / h;
     }
-    rc = fit_kept(t, n, k, nf, init, out, info, err);
+    rc = fit_kept(t, n, k, nf, 0.5 * (w < h ? w : h), init, out, info, err);
 free_buffers:
     free(t);
     free(k);
@@ -414,7 +428,7 @@ int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
             k[2 * (a * nf + j) + 1] = rho * sin(th);
         }
     }
-    rc = fit_kept(t, n, k, nt, init, out, info, err);
+    rc = fit_kept(t, n, k, nt, 0.5 * nproj, init, out, info, err);
 free_buffers:
     free(t);
     free(k);

@@ -24,7 +24,14 @@
  * closure phases, so the result is stated with r <= 1 like binary.h's.
  *
  * Limits.  At r = 1 closure phases cannot tell d from -d: an equal pair
- * (init->pa_ambiguous) is refused with SL_EDATA.
+ * (init->pa_ambiguous) is refused with SL_EDATA.  The cost has a local
+ * minimum about every pixel of d, so the fit needs a start within a few
+ * pixels: LM steps of d are capped at 1 px, and a fit that leaves 0.5 px
+ * .. half the field is refused (SL_EDATA).  A start taken from the
+ * closure-phase detection map (sum_f c_f sin(k.d), one FFT) was tried:
+ * on noisy strong-turbulence data (r0 0.1 m, 1e4 photons) its peaks were
+ * spurious wide "companions" at 60 px that fitted better than the true
+ * one, so only the image fit's d and -d are used.
  *
  * Errors.  The triples share a few turbulence realisations, so they are
  * far from independent: the Gauss-Newton covariance (scaled by the

@@ -155,13 +155,15 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
         goto clear_result;
     int found = metrics_binary(res.image, res.width, res.height, &br) == SL_OK;
     const char *binary_src = found ? "image" : "none", *cps = NULL;
+    binary_result cp = br; /* read whole, so a missing key leaves br alone */
     if (cube_meta_get_str(&res.meta, "CPSTAT", &cps) == SL_OK && !strcmp(cps, "ok") &&
-        cube_meta_get_num(&res.meta, "CPSEP", &br.sep_px) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPSEPE", &br.sep_err_px) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPPA", &br.pa_deg) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPPAE", &br.pa_err_deg) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPDM", &br.dm_mag) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPDME", &br.dm_err_mag) == SL_OK) {
+        cube_meta_get_num(&res.meta, "CPSEP", &cp.sep_px) == SL_OK &&
+        cube_meta_get_num(&res.meta, "CPSEPE", &cp.sep_err_px) == SL_OK &&
+        cube_meta_get_num(&res.meta, "CPPA", &cp.pa_deg) == SL_OK &&
+        cube_meta_get_num(&res.meta, "CPPAE", &cp.pa_err_deg) == SL_OK &&
+        cube_meta_get_num(&res.meta, "CPDM", &cp.dm_mag) == SL_OK &&
+        cube_meta_get_num(&res.meta, "CPDME", &cp.dm_err_mag) == SL_OK) {
+        br = cp;
         found = 1;
         binary_src = "closure-phase";
     }

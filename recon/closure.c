@@ -122,7 +122,7 @@ static int inv3(const double *m, double *o)
 static double lm(fitctx *c, double th[NP], double *A, int max_steps,
                  int *steps)
 {
-    double b[NP], M[NP * NP], Mi[NP * NP], lam = 1e-3;
+    double b[NP], M[NP * NP], Mi[NP * NP], A2[NP * NP], b2[NP], lam = 1e-3;
     double f = cost(c, th, A, b);
     int it = 0;
     for (; it < max_steps && lam < 1e10; it++) {
@@ -149,11 +149,15 @@ static double lm(fitctx *c, double th[NP], double *A, int max_steps,
                 t2[p] = th[p] + (t2[p] - th[p]) * MAX_DSTEP_PX / dd;
         /* r stays in (1e-4, 1e4): beyond that the fit has lost the pair. */
         t2[2] = fmin(fmax(t2[2], -9.2), 9.2);
-        double f2 = cost(c, t2, NULL, NULL);
+        /* The trial pass also sums J^T W J: one pass per step, accepted
+         * or not (most are), instead of a second pass on acceptance. */
+        double f2 = cost(c, t2, A2, b2);
         if (f2 < f) {
             double rel = (f - f2) / (f > 0 ? f : 1);
             memcpy(th, t2, sizeof t2);
-            f = cost(c, th, A, b);
+            memcpy(A, A2, sizeof A2);
+            memcpy(b, b2, sizeof b2);
+            f = f2;
             lam = fmax(lam / 3, 1e-9);
             if (rel < 1e-9)
                 break;

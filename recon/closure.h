@@ -68,9 +68,11 @@ typedef struct closure_fit_info {
 /* Fit the binary to g's triples (frequencies fp, fq of g's nfreq, w x h
  * frame), starting from init (an image fit of the same data: its d and
  * flux_ratio; x1 is copied).  rel_min <= 0 means CLOSURE_REL_MIN.  out
- * gets d, sep, PA, flux ratio, dm and their 1-sigma errors; info (may be
- * NULL) what was fitted.  SL_EDATA when init is an equal pair or fewer
- * than 16 triples are kept, SL_ENOMEM. */
+ * gets d, sep, PA, flux ratio, dm and their 1-sigma errors (its other
+ * fields are init's, except nfreq: the frequencies used, err_inflation:
+ * triples / frequencies, fit_rms: NAN); info (may be NULL) what was
+ * fitted.  SL_EDATA when init is an equal pair, fewer than 16 triples are
+ * kept or the fit leaves the field, SL_ENOMEM. */
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
                        const int32_t *fq, int w, int h, double rel_min,
                        const binary_result *init, binary_result *out,

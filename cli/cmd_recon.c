@@ -15,8 +15,8 @@
 #include "tsm.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse;
-    int projections, r2, no_prep, learn_badpix, json, quiet, threads, refine, binary;
+    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix;
+    int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
 
@@ -237,6 +237,9 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     o.r2_px = a->r2;
     o.prep = !a->no_prep;
     o.learn_badpix = a->learn_badpix;
+    o.detect = !a->no_detect;
+    o.recentre = !a->no_recentre;
+    o.badpix_path = a->badpix;
     o.saturation_adu = a->saturation;
     o.photons_per_frame = a->photons;
     o.adu_per_photon = a->gain_adu_per_photon;
@@ -301,7 +304,10 @@ int cmd_recon(int argc, char **argv)
         {"window", 0, 0, G_OPTION_ARG_STRING, &a.window, "direct: frame apodisation none|hann|tukey (default tukey)", "W"},
         {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation, "repair raw pixels at or above this", "ADU"},
         {"no-prep", 0, 0, G_OPTION_ARG_NONE, &a.no_prep, "do not clean frames (sky, NaN, saturation)", NULL},
-        {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn hot/dead pixels from the sequence first", NULL},
+        {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn the detector from every frame, not the first 32", NULL},
+        {"badpix", 0, 0, G_OPTION_ARG_FILENAME, &a.badpix, "bad-pixel map: a FITS image of the frame size, nonzero = bad", "FITS"},
+        {"no-detect", 0, 0, G_OPTION_ARG_NONE, &a.no_detect, "do not learn the detector from the raw frames (bad pixels, saturation, sky region, recentring)", NULL},
+        {"no-recentre", 0, 0, G_OPTION_ARG_NONE, &a.no_recentre, "do not recentre frames on the speckle cloud", NULL},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default 0)", "N"},
         {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "direct: also fit a binary to the bispectrum's closure phases (header CP*; `specklab binary` reports it)", NULL},
@@ -338,7 +344,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips);
+    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips); g_free(a.badpix);
     return status;
 }
 

@@ -280,6 +280,7 @@ struct cube_reader {
     int in_file;       /* next frame within files[cur] */
     int frame;         /* next frame of the sequence */
     cube_meta meta;
+    double code_max;   /* cube_reader_code_max */
     sl_err err;
 };
 
@@ -346,6 +347,27 @@ static int open_file(const cube_file *f, fitsfile **fp, int *w, int *h,
 }
 
 /* Read every file's header (one open at a time): sizes, frames, meta. */
+/* The largest value the current HDU's integer type holds once BZERO is
+ * applied (BITPIX 8: 255; 16 with BZERO 32768: 65535); 0 for floating
+ * point or a BSCALE that makes the values real. */
+static double type_code_max(fitsfile *fp)
+{
+    int t = 0, st = 0;
+    if (fits_get_img_equivtype(fp, &t, &st)) {
+        fits_clear_errmsg();
+        return 0;
+    }
+    switch (t) {
+    case BYTE_IMG: return 255;
+    case SBYTE_IMG: return 127;
+    case USHORT_IMG: return 65535;
+    case SHORT_IMG: return 32767;
+    case ULONG_IMG: return 4294967295.0;
+    case LONG_IMG: return 2147483647.0;
+    default: return 0;
+    }
+}
+
 static int scan_files(cube_reader *r, sl_err *err)
 {
     fitsfile *fp = NULL;
@@ -361,6 +383,7 @@ static int scan_files(cube_reader *r, sl_err *err)
             r->width = w;
             r->height = h;
             rc = meta_from_hdu(fp, &r->meta, f->path, err);
+            r->code_max = type_code_max(fp);
         } else if (w != r->width || h != r->height) {
             rc = sl_seterr(err, SL_EFORMAT, "%s: frames are %d x %d but %s "
                            "has %d x %d", f->path, w, h, r->files[0].path,
@@ -403,6 +426,7 @@ free_reader:
     return rc;
 }
 
+double cube_reader_code_max(const cube_reader *r) { return r->code_max; }
 int cube_reader_width(const cube_reader *r) { return r->width; }
 int cube_reader_height(const cube_reader *r) { return r->height; }
 int cube_reader_nframes(const cube_reader *r) { return r->nframes; }

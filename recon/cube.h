@@ -27,7 +27,7 @@
 #define CUBE_KEY_MAX 9      /* 8-character FITS keyword + NUL */
 #define CUBE_STR_MAX 69     /* a one-card FITS string value: 68 chars + NUL */
 #define CUBE_COMMENT_MAX 73 /* cfitsio's FLEN_COMMENT */
-#define CUBE_META_MAX_EXTRA 64
+#define CUBE_META_MAX_EXTRA 128
 
 typedef enum cube_kv_type {
     CUBE_KV_NUM,  /* written as an integer when integral, else %.17G */
@@ -102,6 +102,10 @@ int cube_reader_width(const cube_reader *r);
 int cube_reader_height(const cube_reader *r);
 int cube_reader_nframes(const cube_reader *r);
 const cube_meta *cube_reader_meta(const cube_reader *r);
+/* The largest raw value the first file's integer type can hold (BITPIX 8:
+ * 255; BITPIX 16 with BZERO 32768: 65535; signed 16: 32767), where an ADC
+ * that fills the type saturates; 0 for floating-point data. */
+double cube_reader_code_max(const cube_reader *r);
 /* Read the next frame into frame[width*height].  SL_OK, SL_EEND after the
  * last frame, or an error (SL_EDATA for NaN/Inf without
  * CUBE_ALLOW_NONFINITE: the message gives the file, the count and the first

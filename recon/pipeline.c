@@ -23,6 +23,8 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->window = POWSPEC_WIN_TUKEY;
     o->tukey_alpha = 0.25;
     o->prep = 1;
+    o->detect = 1;
+    o->recentre = 1;
     o->fftw_measure = 1;
     o->skips = -1;
 }
@@ -57,120 +59,9 @@ static double now_s(void)
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-static void stream_close(stream *s)
-{
-    cube_reader_free(s->rd);
-    prep_free(s->pp);
-    free(s->frame);
-    probe_free(s->pb);
-    free(s->sel);
-    free(s->cache);
-    memset(s, 0, sizeof *s);
-}
-
-int stream_next(stream *s)
-{
-    int rc = cube_reader_next(s->rd, s->frame);
-    if (rc == SL_OK && s->scale != 1.0)
-        for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++)
-            s->frame[i] = (float)(s->frame[i] * s->scale);
-    return rc;
-}
-
-/* The power of two that brings the first frame's peak |pixel| into
- * [0.5, 1) when it lies outside 2^-24..2^24 (see stream.scale), else 1.
- * Cost: one extra frame read. */
-static int stream_pick_scale(stream *s)
-{
-    s->scale = 1.0;
-    int rc = cube_reader_next(s->rd, s->frame);
-    if (rc != SL_OK)    /* the reader keeps its message for the caller */
-        return rc == SL_EEND ? SL_OK : rc;
-    cube_reader_rewind(s->rd);
-    double peak = 0;
-    for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++) {
-        double a = fabs((double)s->frame[i]);
-        if (isfinite(a) && a > peak)
-            peak = a;
-    }
-    if (peak > 0 && (peak > 0x1p24 || peak < 0x1p-24))
-        s->scale = ldexp(1.0, -(ilogb(peak) + 1));
-    return SL_OK;
-}
-
-/* Open a sequence for streaming, with frame cleaning as the options say
- * (the estimators apodise themselves, so prep never windows). */
-static int stream_open(stream *s, const char *const *paths, int npaths,
-                       const pipeline_opts *o, sl_err *err)
-{
-    memset(s, 0, sizeof *s);
-    int rc = cube_reader_open(&s->rd, paths, npaths,
-                              o->prep ? CUBE_ALLOW_NONFINITE : 0, err);
-    if (rc != SL_OK)
-        return rc;
-    s->w = cube_reader_width(s->rd);
-    s->h = cube_reader_height(s->rd);
-    s->n = cube_reader_nframes(s->rd);
-    s->frame = malloc(sizeof(float) * s->w * s->h);
-    if (!s->frame) {
-        rc = sl_seterr(err, SL_ENOMEM, "out of memory for a %dx%d frame",
-                       s->w, s->h);
-        goto close_stream;
-    }
-    if ((rc = stream_pick_scale(s)) != SL_OK) {
-        rc = sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
-        goto close_stream;
-    }
-    if (o->prep) {
-        prep_opts po;
-        prep_opts_defaults(&po);
-        po.window = PREP_WIN_NONE;
-        po.saturation_adu = o->saturation_adu * s->scale;
-        if ((rc = prep_new(&s->pp, s->w, s->h, &po, err)) != SL_OK)
-            goto close_stream;
-    }
-    return SL_OK;
-close_stream:
-    stream_close(s);
-    return rc;
-}
-
-/* pipeline_int.h */
-int stream_feed(stream *s, add_fn add, void *h, const char *what,
-                sl_err *err)
-{
-    if (s->pb)
-        return skip_feed(s, add, h, what, err);
-    cube_reader_rewind(s->rd);
-    int rc, k = 0;
-    while ((rc = stream_next(s)) == SL_OK) {
-        if (s->pp)
-            prep_frame(s->pp, s->frame, NULL);
-        if (add && (rc = add(h, s->frame)) != SL_OK)
-            return sl_seterr(err, rc, "frame %d: %s", k, what);
-        k++;
-    }
-    if (rc != SL_EEND)
-        return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
-    return SL_OK;
-}
-
-static int learn_add(void *h, const float *f) { return prep_learn(h, f); }
 static int ps_add(void *h, const float *f) { return powspec_add(h, f); }
 static int bs_add(void *h, const float *f) { return bispec_add(h, f); }
 static int tsm_add_fn(void *h, const float *f) { return tsm_add(h, f); }
-
-/* Learning needs raw frames: read without prep, then finish the map. */
-static int learn_badpix(stream *s, sl_err *err)
-{
-    prep *pp = s->pp;
-    s->pp = NULL;
-    int rc = stream_feed(s, learn_add, pp, "learning bad pixels", err);
-    s->pp = pp;
-    if (rc == SL_OK && prep_learn_finish(pp) < 0)
-        rc = sl_seterr(err, SL_ENOMEM, "%s", prep_errmsg(pp));
-    return rc;
-}
 
 /* The power spectrum of a whole sequence (pass 1 of direct, and the
  * reference).  When the gain is unknown but photons are, g comes from the
@@ -491,8 +382,7 @@ static void describe(const pipeline_opts *o, const stream *s, double photons,
         cube_meta_set_str(m, "RECWIN", o->window == POWSPEC_WIN_NONE ? "none" :
                           o->window == POWSPEC_WIN_HANN ? "hann" : "tukey",
                           "frame apodisation");
-    if (s->pp)
-        prep_describe(s->pp, m);
+    stream_describe(s, m);
 }
 
 int pipeline_run(const char *const *paths, int npaths,
@@ -518,8 +408,6 @@ int pipeline_run(const char *const *paths, int npaths,
             goto close_ref;
         }
     }
-    if (o->learn_badpix && s.pp && (rc = learn_badpix(&s, err)) != SL_OK)
-        goto close_ref;
     double photons, g;
     int phsrc;
     if ((rc = stream_photon_stats(&s, o, &photons, &g, &phsrc, err)) != SL_OK)

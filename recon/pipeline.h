@@ -64,7 +64,13 @@ typedef struct pipeline_opts {
     int window;               /* POWSPEC_WIN_*; default TUKEY */
     double tukey_alpha;       /* default 0.25 */
     int prep;                 /* clean frames first (default 1) */
-    int learn_badpix;         /* extra pass to learn hot/dead pixels */
+    int detect;               /* learn the detector from the raw frames
+                               * (rawstats.h): bad pixels, saturation,
+                               * sky, the cloud (default 1) */
+    int learn_badpix;         /* learn from every frame, not the first 32 */
+    int recentre;             /* recentre frames on the cloud (default 1;
+                               * needs detect) */
+    const char *badpix_path;  /* a bad-pixel map (FITS, nonzero = bad) */
     double saturation_adu;    /* raw values >= this are repaired; 0 = none */
     /* Photon statistics: > 0 given; 0 = from the header (SIMPHOT,
      * SIMGAIN) when present; < 0 = treat the data as not photon counts. */

@@ -9,6 +9,7 @@
 #include "pipeline.h"
 #include "prep.h"
 #include "probe.h"
+#include "rawstats.h"
 
 typedef int (*add_fn)(void *h, const float *frame);
 
@@ -34,7 +35,18 @@ typedef struct stream {
      * Quantities in ADU (saturation, read noise, ADU per photon) are scaled
      * with the frames. */
     double scale;
+    rawstats_result det;  /* what the raw frames said (det_learnt) */
+    int det_learnt;
 } stream;
+
+/* Open paths for streaming; with o->prep, frames are cleaned as the
+ * options and the detector learnt from the raw frames say
+ * (pipeline_stream.c). */
+int stream_open(stream *s, const char *const *paths, int npaths,
+                const pipeline_opts *o, sl_err *err);
+void stream_close(stream *s);
+/* The cleaning and the detector learnt, as PREP* and DET* keywords. */
+void stream_describe(const stream *s, cube_meta *m);
 
 /* Read the next frame of s into s->frame, scaled; cube_reader_next's
  * status (SL_EEND at the end). */

@@ -16,9 +16,11 @@ struct prep {
     float *win;        /* window, or NULL when none */
     uint8_t *bad;      /* bad-pixel map */
     int nbad;
-    double *learn;     /* running sum of raw frames, or NULL */
-    int nlearn;
     float *border;     /* scratch for the sky median */
+    int *skyidx;       /* sky pixels (prep_set_sky), or NULL */
+    int nsky;
+    float *shifted;    /* scratch for recentring, or NULL */
+    double cx, cy, crad; /* the cloud's long-exposure centre and radius */
 };
 
 void prep_opts_defaults(prep_opts *o)
@@ -27,7 +29,6 @@ void prep_opts_defaults(prep_opts *o)
     o->sky = PREP_SKY_AUTO;
     o->window = PREP_WIN_TUKEY;
     o->tukey_alpha = 0.25;
-    o->badpix_nsigma = 8;
 }
 
 const char *prep_errmsg(const prep *p) { return p ? p->err.msg : "no prep"; }
@@ -144,8 +145,6 @@ int prep_new(prep **out, int w, int h, const prep_opts *o, sl_err *err)
         int m = (w < h ? w : h) / 16;
         p->o.border_px = m < 2 ? 2 : m;
     }
-    if (p->o.badpix_nsigma <= 0)
-        p->o.badpix_nsigma = 8;
     int rc = SL_OK;
     p->bad = calloc((size_t)w * h, 1);
     int b = p->o.border_px, nb = 2 * b * w + 2 * b * (h - 2 * b);
@@ -174,8 +173,9 @@ void prep_free(prep *p)
     free(p->invflat);
     free(p->win);
     free(p->bad);
-    free(p->learn);
     free(p->border);
+    free(p->skyidx);
+    free(p->shifted);
     free(p);
 }
 
@@ -190,71 +190,30 @@ void prep_mark_bad(prep *p, int x, int y)
     }
 }
 
-int prep_learn(prep *p, const float *raw)
+/* Mean of the sky pixels, clipped twice at 4 rms about the mean (a
+ * speckle that strays onto the sky, a cosmic ray). */
+static float sky_masked(const prep *p, const float *f)
 {
-    size_t n = (size_t)p->w * p->h;
-    if (!p->learn) {
-        p->learn = calloc(n, sizeof(double));
-        if (!p->learn)
-            return sl_seterr(&p->err, SL_ENOMEM, "out of memory");
-    }
-    for (size_t i = 0; i < n; i++)
-        if (isfinite(raw[i]))
-            p->learn[i] += raw[i];
-    p->nlearn++;
-    return SL_OK;
-}
-
-/* Hot/dead pixels stand out of their 3x3 neighbourhood in the MEAN frame,
- * where speckle has averaged into a smooth halo.  Robust sigma: 1.4826 x
- * the median absolute residual over the frame. */
-int prep_learn_finish(prep *p)
-{
-    if (!p->learn || p->nlearn == 0)
-        return 0;
-    int w = p->w, h = p->h, before = p->nbad;
-    size_t n = (size_t)w * h;
-    float *res = malloc(n * sizeof(float)), *tmp = malloc(n * sizeof(float));
-    if (!res || !tmp) {
-        free(res);
-        free(tmp);
-        return sl_seterr(&p->err, SL_ENOMEM, "out of memory");
-    }
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            float nb[8];
-            int k = 0;
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++) {
-                    int xx = x + dx, yy = y + dy;
-                    if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h)
-                        nb[k++] = (float)p->learn[(size_t)yy * w + xx];
-                }
-            float med = median(nb, k);
-            res[(size_t)y * w + x] = (float)(p->learn[(size_t)y * w + x] - med);
+    double mean = 0, rms = INFINITY;
+    for (int pass = 0; pass < 3; pass++) {
+        double s1 = 0, s2 = 0, c = 0;
+        for (int k = 0; k < p->nsky; k++) {
+            double v = f[p->skyidx[k]];
+            if (isfinite(v) && fabs(v - mean) <= 4 * rms)
+                s1 += v, s2 += v * v, c++;
         }
-    for (size_t i = 0; i < n; i++)
-        tmp[i] = fabsf(res[i]);
-    float sigma = 1.4826f * median(tmp, (int)n);
-    /* Two tests, both required: a noise outlier (nsigma robust sigmas) and
-     * a gross one (off by > 30 % of the local level), so that the smooth
-     * curvature of a noiseless halo is never taken for a bad pixel. */
-    for (size_t i = 0; i < n; i++) {
-        double local = p->learn[i] - res[i];
-        if (fabsf(res[i]) > p->o.badpix_nsigma * sigma &&
-            fabs(res[i]) > 0.3 * fabs(local))
-            prep_mark_bad(p, (int)(i % w), (int)(i / w));
+        if (c < 1)
+            break;
+        mean = s1 / c;
+        rms = sqrt(fmax(s2 / c - mean * mean, 0)) + 1e-30;
     }
-    free(res);
-    free(tmp);
-    free(p->learn);
-    p->learn = NULL;
-    p->nlearn = 0;
-    return p->nbad - before;
+    return (float)mean;
 }
 
 static float sky_level(prep *p, const float *f)
 {
+    if (p->skyidx)
+        return sky_masked(p, f);
     int w = p->w, h = p->h, b = p->o.border_px, k = 0;
     const uint8_t *restrict bad = p->bad;
     float *restrict out = p->border;
@@ -273,13 +232,29 @@ static float sky_level(prep *p, const float *f)
     return stats_median_inplace(out, (size_t)k);
 }
 
-/* Replace flagged pixels (flag[i] != 0) by their good neighbours' median. */
+/* 1 when one of the 8 neighbours of (x, y) is saturated (flag bit 2). */
+static int saturated_neighbour(const uint8_t *flag, int w, int h, int x, int y)
+{
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++) {
+            int xx = x + dx, yy = y + dy;
+            if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h &&
+                (flag[(size_t)yy * w + xx] & 4))
+                return 1;
+        }
+    return 0;
+}
+
+/* Replace flagged pixels (flag[i] != 0) by their good neighbours' median;
+ * a saturated pixel of a plateau (flag 4 alone, a saturated neighbour)
+ * keeps its clip level. */
 static void repair(prep *p, float *f, const uint8_t *flag, float fallback)
 {
     int w = p->w, h = p->h;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            if (!flag[(size_t)y * w + x])
+            uint8_t fl = flag[(size_t)y * w + x];
+            if (!fl || (fl == 4 && saturated_neighbour(flag, w, h, x, y)))
                 continue;
             float nb[8];
             int k = 0;
@@ -310,6 +285,85 @@ static int all_finite(const float *f, size_t n)
     for (int k = 0; k < 8; k++)
         t += z[k];
     return t == 0.0f;
+}
+
+void prep_set_badmap(prep *p, const uint8_t *map)
+{
+    for (int y = 0; y < p->h; y++)
+        for (int x = 0; x < p->w; x++)
+            if (map[(size_t)y * p->w + x])
+                prep_mark_bad(p, x, y);
+}
+
+int prep_set_sky(prep *p, const uint8_t *sky)
+{
+    size_t n = (size_t)p->w * p->h, count = 0;
+    free(p->skyidx);
+    p->skyidx = NULL;
+    p->nsky = 0;
+    for (size_t i = 0; sky && i < n; i++)
+        count += sky[i] && !p->bad[i];
+    if (count < 64)
+        return SL_OK;
+    /* every stride-th sky pixel: at most 8192, ~0.02 ms per frame */
+    size_t stride = (count + 8191) / 8192, k = 0;
+    if (!(p->skyidx = malloc(sizeof(int) * (count / stride + 1))))
+        return sl_seterr(&p->err, SL_ENOMEM, "out of memory for the sky mask");
+    for (size_t i = 0; i < n; i++)
+        if (sky[i] && !p->bad[i] && k++ % stride == 0)
+            p->skyidx[p->nsky++] = (int)i;
+    return SL_OK;
+}
+
+int prep_set_centre(prep *p, double cx, double cy, double radius_px)
+{
+    if (!p->shifted &&
+        !(p->shifted = malloc(sizeof(float) * (size_t)p->w * p->h)))
+        return sl_seterr(&p->err, SL_ENOMEM, "out of memory for recentring");
+    p->cx = cx, p->cy = cy, p->crad = radius_px > 2 ? radius_px : 2;
+    return SL_OK;
+}
+
+/* The circular shift by whole pixels that brings (cx, cy) to (w/2, h/2):
+ * the long exposure's centre, or the frame's own centroid of positive
+ * flux within crad of it when that strays by more than tol = max(3,
+ * crad / 10) pixels (a drift that would take the cloud out of a crop).
+ * Smaller per-frame moves are left alone, and so is a long exposure
+ * within tol of the centre: one shift for all frames, or none, keeps
+ * their sub-pixel positions on the grid, which a spatial Radon
+ * transform's interpolation sees (spatial TSM's dm moved by 0.06 under a
+ * 2 px shift). */
+static void recentre(prep *p, float *f, int *sx, int *sy)
+{
+    int w = p->w, h = p->h;
+    int x0 = (int)floor(p->cx - p->crad), x1 = (int)ceil(p->cx + p->crad);
+    int y0 = (int)floor(p->cy - p->crad), y1 = (int)ceil(p->cy + p->crad);
+    double r2 = p->crad * p->crad, s = 0, sxw = 0, syw = 0;
+    for (int y = y0 < 0 ? 0 : y0; y <= y1 && y < h; y++)
+        for (int x = x0 < 0 ? 0 : x0; x <= x1 && x < w; x++) {
+            double v = f[(size_t)y * w + x], dx = x - p->cx, dy = y - p->cy;
+            if (v > 0 && dx * dx + dy * dy <= r2)
+                s += v, sxw += v * x, syw += v * y;
+        }
+    double tol = fmax(3, p->crad / 10), cx = p->cx, cy = p->cy;
+    if (s > 0 && hypot(sxw / s - p->cx, syw / s - p->cy) > tol)
+        cx = sxw / s, cy = syw / s;
+    else if (hypot(cx - w / 2, cy - h / 2) <= tol)
+        cx = w / 2, cy = h / 2;   /* centred already: leave it */
+    int dx = (w / 2 - (int)lround(cx)) % w, dy = (h / 2 - (int)lround(cy)) % h;
+    dx = dx < 0 ? dx + w : dx;
+    dy = dy < 0 ? dy + h : dy;
+    *sx = dx > w / 2 ? dx - w : dx;
+    *sy = dy > h / 2 ? dy - h : dy;
+    if (!dx && !dy)
+        return;
+    for (int y = 0; y < h; y++) {
+        const float *src = f + (size_t)y * w;
+        float *dst = p->shifted + (size_t)((y + dy) % h) * w;
+        memcpy(dst + dx, src, sizeof(float) * (size_t)(w - dx));
+        memcpy(dst, src + (w - dx), sizeof(float) * (size_t)dx);
+    }
+    memcpy(f, p->shifted, sizeof(float) * (size_t)w * h);
 }
 
 int prep_frame(prep *p, float *f, prep_stats *st)
@@ -364,6 +418,8 @@ int prep_frame(prep *p, float *f, prep_stats *st)
         for (size_t i = i8; i < n; i++)
             f[i] -= fs;
     }
+    if (p->shifted)
+        recentre(p, f, &s.shift_x, &s.shift_y);
     if (st) {
         double flux = 0;
         for (size_t i = 0; i < n; i++)
@@ -396,6 +452,9 @@ void prep_describe(const prep *p, cube_meta *m)
     cube_meta_set_num(m, "PREPSAT", p->o.saturation_adu, "[adu] saturation, 0 = none");
     cube_meta_set_num(m, "PREPNBAD", p->nbad, "pixels in the bad-pixel map");
     cube_meta_set_str(m, "PREPWIN", win[p->o.window], "apodisation window");
+    cube_meta_set_num(m, "PREPCENT", p->shifted != NULL, "1 = frames recentred on the cloud");
+    if (p->skyidx)
+        cube_meta_set_str(m, "PREPSKY", "sky-mask mean", "sky estimate subtracted per frame");
     if (p->o.window == PREP_WIN_TUKEY)
         cube_meta_set_num(m, "PREPALPH", p->o.tukey_alpha, "Tukey taper fraction");
 }

@@ -3,6 +3,7 @@
 
 #include "cube.h"
 #include "prep.h"
+#include "rawstats.h"
 #include "tcheck.h"
 
 #define W 48
@@ -60,8 +61,10 @@ TEST(hot_dead_nan_and_saturated_pixels_are_repaired)
     o.sky = PREP_SKY_NONE;
     o.saturation_adu = 1000;
     prep *p = NULL;
+    rawstats *rs = NULL;
     sl_err e;
     CHECK(prep_new(&p, W, H, &o, &e) == SL_OK, "%s", e.msg);
+    CHECK(rawstats_new(&rs, W, H, 0, &e) == SL_OK, "%s", e.msg);
     float f[W * H];
     for (int k = 0; k < 20; k++) {
         for (int y = 0; y < H; y++)
@@ -69,9 +72,12 @@ TEST(hot_dead_nan_and_saturated_pixels_are_repaired)
                 f[y * W + x] = blob(x, y) + 10 + (float)((x * 13 + y * 7 + k) % 5);
         f[5 * W + 7] = 500;        /* hot */
         f[30 * W + 40] = 0;        /* dead */
-        prep_learn(p, f);
+        rawstats_add(rs, f);
     }
-    CHECK(prep_learn_finish(p) == 2, "marked %d pixels, want the hot and the dead one", prep_nbad(p));
+    CHECK(rawstats_finish(rs, NULL) == SL_OK, "%s", rawstats_errmsg(rs));
+    prep_set_badmap(p, rawstats_badmap(rs));
+    rawstats_free(rs);
+    CHECK(prep_nbad(p) == 2, "marked %d pixels, want the hot and the dead one", prep_nbad(p));
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++)
             f[y * W + x] = blob(x, y) + 10;

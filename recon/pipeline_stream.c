@@ -1,0 +1,205 @@
+/* pipeline_stream.c - one input sequence being streamed (pipeline_int.h):
+ * the reader, the scale that keeps float sums in range, and the frame
+ * cleaning, set up from what the raw frames say about the detector
+ * (rawstats.h) before the first frame is cleaned.
+ *
+ * Why learn the detector by default: stuck, hot and dead pixels, an ADC
+ * that clips and an off-centre cloud each break every estimator on camera
+ * data, and no header need say so.  The learning reads the first
+ * DETECT_FRAMES raw frames once more (every frame with learn_badpix); on
+ * a 200^2 cube that is ~0.2 ms per frame.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "pipeline_int.h"
+#include "rawstats.h"
+
+#define DETECT_FRAMES 32
+
+void stream_close(stream *s)
+{
+    cube_reader_free(s->rd);
+    prep_free(s->pp);
+    free(s->frame);
+    probe_free(s->pb);
+    free(s->sel);
+    free(s->cache);
+    memset(s, 0, sizeof *s);
+}
+
+int stream_next(stream *s)
+{
+    int rc = cube_reader_next(s->rd, s->frame);
+    if (rc == SL_OK && s->scale != 1.0)
+        for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++)
+            s->frame[i] = (float)(s->frame[i] * s->scale);
+    return rc;
+}
+
+/* The power of two that brings the first frame's peak |pixel| into
+ * [0.5, 1) when it lies outside 2^-24..2^24 (see stream.scale), else 1.
+ * Cost: one extra frame read. */
+static int stream_pick_scale(stream *s)
+{
+    s->scale = 1.0;
+    int rc = cube_reader_next(s->rd, s->frame);
+    if (rc != SL_OK)    /* the reader keeps its message for the caller */
+        return rc == SL_EEND ? SL_OK : rc;
+    cube_reader_rewind(s->rd);
+    double peak = 0;
+    for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++) {
+        double a = fabs((double)s->frame[i]);
+        if (isfinite(a) && a > peak)
+            peak = a;
+    }
+    if (peak > 0 && (peak > 0x1p24 || peak < 0x1p-24))
+        s->scale = ldexp(1.0, -(ilogb(peak) + 1));
+    return SL_OK;
+}
+
+/* Learn the detector from the first raw frames (all of them with
+ * learn_badpix) into *out; *rs stays NULL when there are too few. */
+static int learn_detector(stream *s, const pipeline_opts *o, rawstats **rs,
+                          sl_err *err)
+{
+    int want = o->learn_badpix ? s->n : DETECT_FRAMES < s->n ? DETECT_FRAMES : s->n;
+    int rc = rawstats_new(rs, s->w, s->h, cube_reader_code_max(s->rd) * s->scale, err);
+    if (rc != SL_OK)
+        return rc;
+    cube_reader_rewind(s->rd);
+    for (int k = 0; k < want && (rc = stream_next(s)) == SL_OK; k++)
+        rawstats_add(*rs, s->frame);
+    cube_reader_rewind(s->rd);
+    if (rc != SL_OK && rc != SL_EEND)
+        return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+    if ((rc = rawstats_finish(*rs, &s->det)) != SL_OK)
+        return sl_seterr(err, rc, "%s", rawstats_errmsg(*rs));
+    s->det_learnt = 1;
+    return SL_OK;
+}
+
+/* A bad-pixel map file: a 2-D FITS image of the frame size, nonzero =
+ * bad. */
+static int read_badpix(stream *s, const char *path, sl_err *err)
+{
+    seq *m = NULL;
+    const char *paths[] = {path};
+    int rc = cube_read(&m, NULL, paths, 1, CUBE_ALLOW_NONFINITE, err);
+    if (rc != SL_OK)
+        return rc;
+    if (m->width != s->w || m->height != s->h || m->nframes != 1) {
+        rc = sl_seterr(err, SL_EFORMAT, "bad-pixel map %s is %dx%d x %d "
+                       "frames; the frames are %dx%d (want one image)", path,
+                       m->width, m->height, m->nframes, s->w, s->h);
+    } else {
+        for (int y = 0; y < s->h; y++)
+            for (int x = 0; x < s->w; x++) {
+                float v = m->data[(size_t)y * s->w + x];
+                if (v != 0 || !isfinite(v))
+                    prep_mark_bad(s->pp, x, y);
+            }
+    }
+    seq_free(m);
+    return rc;
+}
+
+/* Frame cleaning, from the options and the detector learnt. */
+static int stream_prep(stream *s, const pipeline_opts *o, sl_err *err)
+{
+    rawstats *rs = NULL;
+    int rc = SL_OK;
+    if (o->detect && (rc = learn_detector(s, o, &rs, err)) != SL_OK)
+        goto free_rs;
+    prep_opts po;
+    prep_opts_defaults(&po);
+    po.window = PREP_WIN_NONE;   /* the estimators apodise themselves */
+    po.saturation_adu = o->saturation_adu > 0 ? o->saturation_adu * s->scale
+                                              : s->det.sat_level;
+    if ((rc = prep_new(&s->pp, s->w, s->h, &po, err)) != SL_OK)
+        goto free_rs;
+    if (rs)
+        prep_set_badmap(s->pp, rawstats_badmap(rs));
+    if (o->badpix_path && (rc = read_badpix(s, o->badpix_path, err)) != SL_OK)
+        goto free_rs;
+    if (rs) {
+        if ((rc = prep_set_sky(s->pp, rawstats_skymask(rs))) == SL_OK && o->recentre)
+            rc = prep_set_centre(s->pp, s->det.cx_px, s->det.cy_px,
+                                 s->det.cloud_radius_px);
+        if (rc != SL_OK)
+            sl_seterr(err, rc, "%s", prep_errmsg(s->pp));
+    }
+free_rs:
+    rawstats_free(rs);
+    return rc;
+}
+
+int stream_open(stream *s, const char *const *paths, int npaths,
+                const pipeline_opts *o, sl_err *err)
+{
+    memset(s, 0, sizeof *s);
+    int rc = cube_reader_open(&s->rd, paths, npaths,
+                              o->prep ? CUBE_ALLOW_NONFINITE : 0, err);
+    if (rc != SL_OK)
+        return rc;
+    s->w = cube_reader_width(s->rd);
+    s->h = cube_reader_height(s->rd);
+    s->n = cube_reader_nframes(s->rd);
+    s->frame = malloc(sizeof(float) * s->w * s->h);
+    if (!s->frame) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for a %dx%d frame",
+                       s->w, s->h);
+        goto close_stream;
+    }
+    if ((rc = stream_pick_scale(s)) != SL_OK) {
+        rc = sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+        goto close_stream;
+    }
+    if (o->prep && (rc = stream_prep(s, o, err)) != SL_OK)
+        goto close_stream;
+    return SL_OK;
+close_stream:
+    stream_close(s);
+    return rc;
+}
+
+int stream_feed(stream *s, add_fn add, void *h, const char *what,
+                sl_err *err)
+{
+    if (s->pb)
+        return skip_feed(s, add, h, what, err);
+    cube_reader_rewind(s->rd);
+    int rc, k = 0;
+    while ((rc = stream_next(s)) == SL_OK) {
+        if (s->pp)
+            prep_frame(s->pp, s->frame, NULL);
+        if (add && (rc = add(h, s->frame)) != SL_OK)
+            return sl_seterr(err, rc, "frame %d: %s", k, what);
+        k++;
+    }
+    if (rc != SL_EEND)
+        return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+    return SL_OK;
+}
+
+void stream_describe(const stream *s, cube_meta *m)
+{
+    if (s->pp)
+        prep_describe(s->pp, m);
+    if (!s->det_learnt)
+        return;
+    static const char *src[] = {"none", "type", "adc", "flat-top"};
+    const rawstats_result *d = &s->det;
+    cube_meta_set_num(m, "DETNFRM", d->nframes, "raw frames the detector was learnt from");
+    cube_meta_set_num(m, "DETSTUCK", d->nstuck, "stuck pixels found (repaired)");
+    cube_meta_set_num(m, "DETHOT", d->nhot, "hot pixels found (repaired)");
+    cube_meta_set_num(m, "DETDEAD", d->ndead, "dead pixels found (repaired)");
+    cube_meta_set_num(m, "DETSAT", d->sat_level / s->scale, "[adu] saturation level found, 0 = none");
+    cube_meta_set_str(m, "DETSATSR", src[d->sat_source], "saturation from: type, adc, flat-top");
+    cube_meta_set_num(m, "DETQUANT", d->quantum / s->scale, "[adu] data step, 0 = real-valued");
+    cube_meta_set_num(m, "DETSKY", d->sky_level / s->scale, "[adu] raw sky level");
+    cube_meta_set_num(m, "DETSKYRM", d->sky_rms / s->scale, "[adu] sky temporal rms");
+    cube_meta_set_num(m, "DETCX", d->cx_px, "[px] raw cloud centre x (0-based)");
+    cube_meta_set_num(m, "DETCY", d->cy_px, "[px] raw cloud centre y (0-based)");
+}

@@ -1,0 +1,171 @@
+/* test_rawstats.c - what raw frames say about the detector: stuck, hot and
+ * dead pixels, saturation, the sky and the cloud, on synthetic camera
+ * frames whose defects are known exactly. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rawstats.h"
+#include "rng.h"
+#include "tcheck.h"
+
+#define W 64
+#define H 56
+
+/* A camera-like frame k: a speckly blob of `flux` photons (a Gaussian
+ * envelope modulated by frame-dependent speckle, moving with jitter) at
+ * (cx, cy), Poisson noise, gain 2 e-/adu, read noise 3 e-, bias 100 adu,
+ * 12-bit clip.  Integer ADU. */
+static void camera_frame(float *f, int k, double cx, double cy, double flux,
+                         double sigma_px)
+{
+    rng r;
+    rng_init(&r, 7, (uint64_t)k);
+    double jx = 1.5 * rng_normal(&r), jy = 1.5 * rng_normal(&r);
+    double norm = 1.0 / (2 * M_PI * sigma_px * sigma_px);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            double dx = x - cx - jx, dy = y - cy - jy;
+            double env = norm * exp(-(dx * dx + dy * dy) / (2 * sigma_px * sigma_px));
+            double speckle = -log(1 - rng_uniform(&r)); /* exponential, mean 1 */
+            double e = (double)rng_poisson(&r, flux * env * speckle) + 3 * rng_normal(&r);
+            double adu = nearbyint(e / 2 + 100);
+            f[(size_t)y * W + x] = (float)fmin(fmax(adu, 0), 4095);
+        }
+}
+
+TEST(stuck_hot_and_dead_pixels_are_found_and_nothing_else)
+{
+    rawstats *rs = NULL;
+    sl_err e;
+    CHECK(rawstats_new(&rs, W, H, 65535, &e) == SL_OK, "%s", e.msg);
+    float f[W * H];
+    const int hot[][2] = {{3, 4}, {30, 28}, {50, 10}}, dead[][2] = {{33, 25}, {60, 50}};
+    for (int k = 0; k < 32; k++) {
+        camera_frame(f, k, 34, 26, 2e4, 4);
+        for (int i = 0; i < 3; i++)
+            f[hot[i][1] * W + hot[i][0]] = 4095;   /* stuck at full scale */
+        for (int i = 0; i < 2; i++)
+            f[dead[i][1] * W + dead[i][0]] = 0;    /* dead */
+        CHECK(rawstats_add(rs, f) == SL_OK, "add");
+    }
+    rawstats_result res;
+    CHECK(rawstats_finish(rs, &res) == SL_OK, "%s", rawstats_errmsg(rs));
+    const uint8_t *bad = rawstats_badmap(rs);
+    int nbad = 0;
+    for (int i = 0; i < W * H; i++)
+        nbad += bad[i];
+    for (int i = 0; i < 3; i++)
+        CHECK(bad[hot[i][1] * W + hot[i][0]], "hot pixel (%d, %d) missed", hot[i][0], hot[i][1]);
+    for (int i = 0; i < 2; i++)
+        CHECK(bad[dead[i][1] * W + dead[i][0]], "dead pixel (%d, %d) missed", dead[i][0], dead[i][1]);
+    CHECK(nbad == 5, "%d bad pixels, want the 5 planted (stuck %d hot %d dead %d)", nbad,
+          res.nstuck, res.nhot, res.ndead);
+    /* 4095 is 2^12 - 1 in a 16-bit file: a 12-bit ADC's clip */
+    CHECK(res.sat_source == RAWSTATS_SAT_ADC && res.sat_level == 4095, "saturation %g (source %d)",
+          res.sat_level, res.sat_source);
+    CHECK(res.integer_valued && res.quantum == 1, "quantum %g", res.quantum);
+    CHECK(!res.static_scene, "speckle taken for a static scene");
+    /* the bias, and the sky's temporal rms: read noise 1.5 adu and the
+     * quantisation's 1/sqrt(12) adu */
+    CHECK_NEAR(res.sky_level, 100, 0.05);
+    CHECK_NEAR(res.sky_rms, sqrt(1.5 * 1.5 + 1.0 / 12), 0.15);
+    CHECK_NEAR(res.cx_px, 34, 0.5);
+    CHECK_NEAR(res.cy_px, 26, 0.5);
+    const uint8_t *sky = rawstats_skymask(rs);
+    CHECK(!sky[26 * W + 34] && !sky[26 * W + 38], "the cloud is in the sky mask");
+    CHECK(res.nsky > W * H / 2, "only %d sky pixels", res.nsky);
+    rawstats_free(rs);
+}
+
+TEST(a_warm_pixel_with_noise_is_hot)
+{
+    rawstats *rs = NULL;
+    sl_err e;
+    CHECK(rawstats_new(&rs, W, H, 65535, &e) == SL_OK, "%s", e.msg);
+    float f[W * H];
+    rng r;
+    rng_init(&r, 3, 0);
+    for (int k = 0; k < 32; k++) {
+        camera_frame(f, k, 30, 30, 2e4, 4);
+        /* dark current: 400 e- a frame, Poisson, on a pixel in the cloud */
+        f[28 * W + 33] += (float)nearbyint(rng_poisson(&r, 400) / 2.0);
+        rawstats_add(rs, f);
+    }
+    rawstats_result res;
+    rawstats_finish(rs, &res);
+    CHECK(rawstats_badmap(rs)[28 * W + 33], "warm pixel missed");
+    CHECK(res.nhot == 1 && res.nstuck == 0 && res.ndead == 0, "stuck %d hot %d dead %d",
+          res.nstuck, res.nhot, res.ndead);
+    rawstats_free(rs);
+}
+
+/* A star whose whole PSF falls in one pixel looks like a hot pixel in the
+ * long exposure.  Static it is a static scene; jumping about (moving 1)
+ * or on one pixel but for 4 frames in 32 (moving 2: a sharp core whose
+ * long exposure is one bright pixel) it leaves the pixel dark at times,
+ * which a hot pixel never does.  None may be flagged. */
+TEST(an_undersampled_star_is_never_a_bad_pixel)
+{
+    for (int moving = 0; moving < 3; moving++) {
+        rawstats *rs = NULL;
+        sl_err e;
+        CHECK(rawstats_new(&rs, W, H, 0, &e) == SL_OK, "%s", e.msg);
+        float f[W * H];
+        rng r;
+        rng_init(&r, 11, (uint64_t)moving);
+        for (int k = 0; k < 32; k++) {
+            for (int i = 0; i < W * H; i++)
+                f[i] = (float)(10 + rng_normal(&r));
+            int x = 32 + (moving == 1 ? (int)lround(0.8 * rng_normal(&r)) : 0);
+            int y = 28 + (moving == 1 ? (int)lround(0.8 * rng_normal(&r)) : 0);
+            x += moving == 2 && k % 8 == 3;
+            f[y * W + x] += 1000;
+            rawstats_add(rs, f);
+        }
+        rawstats_result res;
+        rawstats_finish(rs, &res);
+        int nbad = 0;
+        for (int i = 0; i < W * H; i++)
+            nbad += rawstats_badmap(rs)[i];
+        CHECK(nbad == 0, "star (moving %d): %d pixels flagged", moving, nbad);
+        CHECK(res.static_scene == !moving, "static_scene %d", res.static_scene);
+        CHECK(res.sat_source == RAWSTATS_SAT_NONE, "real-valued data saturated at %g", res.sat_level);
+        rawstats_free(rs);
+    }
+}
+
+TEST(flat_topped_peaks_and_the_data_step)
+{
+    rawstats *rs = NULL;
+    sl_err e;
+    CHECK(rawstats_new(&rs, W, H, 65535, &e) == SL_OK, "%s", e.msg);
+    float f[W * H];
+    for (int k = 0; k < 12; k++) {
+        camera_frame(f, k, 30, 30, 2e4, 4);
+        for (int i = 0; i < W * H; i++)
+            f[i] = fminf(f[i], 3000) * 16; /* 12-bit data shifted into 16 bits */
+        if (k % 4 == 0)                    /* clipped peaks in 3 frames */
+            f[30 * W + 30] = f[30 * W + 31] = f[31 * W + 30] = 3000 * 16;
+        rawstats_add(rs, f);
+    }
+    rawstats_result res;
+    rawstats_finish(rs, &res);
+    CHECK(res.quantum == 16, "quantum %g, want 16", res.quantum);
+    CHECK(res.sat_source == RAWSTATS_SAT_FLAT && res.sat_level == 48000,
+          "saturation %g (source %d), want the flat top 48000", res.sat_level, res.sat_source);
+    rawstats_free(rs);
+}
+
+TEST(bad_arguments_are_named)
+{
+    rawstats *rs = NULL;
+    sl_err e = {0};
+    CHECK(rawstats_new(&rs, 2, 10, 0, &e) == SL_EINVAL && strstr(e.msg, "2x10"), "%s", e.msg);
+    CHECK(rs == NULL, "handle on failure");
+    rawstats_free(NULL);
+}
+
+TC_MAIN(TC_CASE(stuck_hot_and_dead_pixels_are_found_and_nothing_else),
+        TC_CASE(a_warm_pixel_with_noise_is_hot), TC_CASE(an_undersampled_star_is_never_a_bad_pixel),
+        TC_CASE(flat_topped_peaks_and_the_data_step), TC_CASE(bad_arguments_are_named))

@@ -4,7 +4,15 @@
  * NAXIS2 = y, NAXIS3 = frame), followed by two 2-D image extensions:
  * TRUTH (the sky on the frame grid, unit total flux) and COPHASED (the same
  * pupil without turbulence, unit total flux).  Frames are streamed to disk
- * one at a time, so memory does not grow with the frame count.
+ * one at a time, so memory does not grow with the frame count.  The cube's
+ * BITPIX follows the detector (sim_output_bitpix): 8 or unsigned 16 for an
+ * 8- or 16-bit converter, else float32.
+ *
+ * --blind writes the cube as a camera would: only DATE-OBS, EXPTIME,
+ * INSTRUME and (when given) OBJECT, no extensions.  Everything the
+ * simulator knows goes to a sidecar: its primary HDU is the truth (so a
+ * reader opening it sees the keywords), then the TRUTH and COPHASED
+ * extensions as in the normal output.
  */
 #include <math.h>
 #include <stdio.h>
@@ -19,13 +27,20 @@
 #include "scene.h"
 #include "sim.h"
 
+/* INSTRUME of a --blind cube: a camera, not the simulator. */
+#define BLIND_INSTRUME "CMOS camera"
+
 typedef struct sim_args {
     char *scene, *mask, *size, *out, *png, *object;
+    char *offset_px, *phase_model, *truth_out;
     double sep_arcsec, pa_deg, dm, wavelength_nm, plate_scale, r0_m, L0_m;
     double wind_mps, wind_dir_deg, interval_ms, exposure_ms;
     double photons, read_noise_e, gain, bias_adu, saturation_adu;
+    double hot_level_adu, jitter_px, pixel_aspect, aperture_m, obstruction;
     gint64 seed;
     int frames, no_turbulence, json, quiet;
+    int adc_bits, hot_pixels, dead_pixels, blind;
+    char *truth_path;   /* the sidecar's path when --blind (g_free) */
 } sim_args;
 
 static void defaults(sim_args *a)
@@ -44,6 +59,8 @@ static void defaults(sim_args *a)
     a->exposure_ms = o.exposure_s * 1e3;
     a->gain = o.gain_e_per_adu;
     a->saturation_adu = o.saturation_adu;
+    a->hot_level_adu = o.hot_level_adu;
+    a->pixel_aspect = o.pixel_aspect;
     a->seed = 1;
     a->frames = o.nframes;
 }
@@ -60,14 +77,53 @@ static int load_inputs(const sim_args *a, scene **sc, mask **m, sl_err *e)
     if (rc != SL_OK)
         return rc;
     const char *mname = a->mask ? a->mask : "nrm17";
+    int telescope = a->aperture_m != 0 || a->obstruction != 0;
+    if (telescope && strcmp(mname, "full") != 0)
+        return sl_seterr(e, SL_EINVAL, "--aperture-m and --obstruction "
+                         "describe a filled aperture: use them with --mask "
+                         "full, not '%s'", mname);
+    if (telescope) {
+        /* the default diameter is the built-in "full" pupil's */
+        *m = mask_new_full_obstructed(a->aperture_m != 0 ? a->aperture_m : 1.1,
+                                      a->obstruction, e);
+        return *m ? SL_OK : e->code;
+    }
     if (!strcmp(mname, "nrm17") || !strcmp(mname, "full"))
         return mask_named(m, mname, e);
     return mask_read(m, mname, e);
 }
 
+/* The options this module adds beyond the paper's model.  all: write every
+ * keyword (the --blind sidecar); otherwise only those of features in use,
+ * so that default headers stay as they were. */
+static void realism_meta(cube_meta *md, const sim *s, int all)
+{
+    const sim_opts *o = sim_options(s);
+    if (all || o->adc_bits)
+        cube_meta_set_num(md, "SIMADC", o->adc_bits, "ADC bits, 0 = no converter limit");
+    if (all || o->hot_pixels)
+        cube_meta_set_num(md, "SIMNHOT", o->hot_pixels, "hot pixels");
+    if (o->hot_pixels && sim_detector(s))
+        cube_meta_set_num(md, "SIMHOTL", detector_hot_level_adu(sim_detector(s)),
+                          "[adu] hot pixel level");
+    if (all || o->dead_pixels)
+        cube_meta_set_num(md, "SIMNDEAD", o->dead_pixels, "dead pixels (0 adu)");
+    if (all || o->offset_x_px != 0 || o->offset_y_px != 0) {
+        cube_meta_set_num(md, "SIMOFFX", o->offset_x_px, "[px] scene offset from the centre, x");
+        cube_meta_set_num(md, "SIMOFFY", o->offset_y_px, "[px] scene offset from the centre, y");
+    }
+    if (all || o->jitter_px > 0)
+        cube_meta_set_num(md, "SIMJITT", o->jitter_px, "[px] tip-tilt jitter rms per axis");
+    if (all || o->pixel_aspect != 1)
+        cube_meta_set_num(md, "SIMASPCT", o->pixel_aspect, "pixel height / width");
+    if (all || o->phase_model != SIM_PHASE_SCREEN)
+        cube_meta_set_str(md, "SIMPHMOD", o->phase_model == SIM_PHASE_PISTON ?
+                          "piston" : "screen", "phase model");
+}
+
 /* Record every simulation parameter in the header (our SIM* keywords). */
 static void fill_meta(cube_meta *md, const sim_args *a, const sim *s,
-                      const scene *sc, const mask *m)
+                      const scene *sc, const mask *m, int all)
 {
     const sim_opts *o = sim_options(s);
     cube_meta_init(md);
@@ -88,6 +144,9 @@ static void fill_meta(cube_meta *md, const sim_args *a, const sim *s,
         cube_meta_set_num(md, "MASKRED", (double)mask_redundancy(m),
                           "baseline pairs closer than a hole diameter");
     }
+    if (mask_obstruction(m) > 0)
+        cube_meta_set_num(md, "MASKOBS", mask_obstruction(m),
+                          "central obstruction / aperture diameter");
     cube_meta_set_num(md, "NYQUIST", sim_nyquist_arcsec(s), "[arcsec/px] Nyquist for MASKEXT");
     cube_meta_set_num(md, "SIMOVS", sim_oversample(s), "computed at this x finer, binned");
     cube_meta_set_num(md, "SIMTURB", o->turbulence, "1 = turbulence on");
@@ -111,14 +170,43 @@ static void fill_meta(cube_meta *md, const sim_args *a, const sim *s,
         cube_meta_set_num(md, "BINPA", a->pa_deg, "[deg] PA from +y (N) to -x (E)");
         cube_meta_set_num(md, "BINDM", a->dm, "[mag] companion magnitude difference");
     }
+    realism_meta(md, s, all);
 }
 
+/* A --blind cube's header: what a camera writes, nothing it could not know. */
+static void camera_meta(cube_meta *md, const sim_args *a, const sim *s)
+{
+    cube_meta_init(md);
+    snprintf(md->instrume, sizeof md->instrume, "%s", BLIND_INSTRUME);
+    if (a->object)
+        snprintf(md->object, sizeof md->object, "%s", a->object);
+    md->exptime_s = sim_options(s)->exposure_s;
+}
+
+/* TRUTH and COPHASED image extensions, then close. */
+static int finish_file(sim *s, cube_writer *w, float *buf, sl_err *e)
+{
+    const sim_opts *o = sim_options(s);
+    int rc = sim_truth(s, buf);
+    if (rc == SL_OK)
+        rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height, NULL);
+    if (rc == SL_OK && (rc = sim_cophased(s, buf)) == SL_OK)
+        rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height, NULL);
+    if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
+        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
+    else if (rc != SL_OK && e->msg[0] == 0)
+        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
+    return rc;
+}
+
+/* The frame cube; with_truth adds the extensions (not for --blind). */
 static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
-                      sl_err *e)
+                      int with_truth, sl_err *e)
 {
     const sim_opts *o = sim_options(s);
     cube_writer *w = NULL;
-    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, e);
+    int rc = cube_writer_open(&w, path, o->width, o->height,
+                              sim_output_bitpix(s), md, e);
     if (rc != SL_OK)
         return rc;
     for (int k = 0; k < o->nframes && rc == SL_OK; k++) {
@@ -128,16 +216,41 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
         else if ((rc = cube_writer_append(w, buf)) != SL_OK)
             sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
     }
-    if (rc == SL_OK && (rc = sim_truth(s, buf)) == SL_OK)
-        rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height, NULL);
-    if (rc == SL_OK && (rc = sim_cophased(s, buf)) == SL_OK)
-        rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height, NULL);
-    if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
-        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
-    else if (rc != SL_OK && e->msg[0] == 0)
+    if (rc == SL_OK && with_truth)
+        rc = finish_file(s, w, buf, e);
+    else if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
         sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
     cube_writer_free(w);
     return rc;
+}
+
+/* The --blind sidecar: the truth as its primary image (one frame) under
+ * every SIM* keyword, then TRUTH and COPHASED as in a normal output. */
+static int write_sidecar(sim *s, const char *path, const cube_meta *md,
+                         float *buf, sl_err *e)
+{
+    const sim_opts *o = sim_options(s);
+    cube_writer *w = NULL;
+    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, e);
+    if (rc != SL_OK)
+        return rc;
+    if ((rc = sim_truth(s, buf)) == SL_OK &&
+        (rc = cube_writer_append(w, buf)) != SL_OK)
+        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
+    if (rc == SL_OK)
+        rc = finish_file(s, w, buf, e);
+    cube_writer_free(w);
+    return rc;
+}
+
+/* OUTPUT with ".fits" replaced by "-truth.fits", else "-truth.fits"
+ * appended. */
+static char *sidecar_path(const char *out)
+{
+    size_t n = strlen(out);
+    if (n > 5 && strcmp(out + n - 5, ".fits") == 0)
+        return g_strdup_printf("%.*s-truth.fits", (int)(n - 5), out);
+    return g_strdup_printf("%s-truth.fits", out);
 }
 
 static int write_pngs(sim *s, const char *prefix, float *buf, sl_err *e)
@@ -180,6 +293,10 @@ static void report(const sim_args *a, const sim *s, double elapsed_s)
         json_builder_add_int_value(b, sim_oversample(s));
         json_builder_set_member_name(b, "warning");
         json_builder_add_string_value(b, sim_warning(s));
+        if (a->truth_path) {
+            json_builder_set_member_name(b, "truth_output");
+            json_builder_add_string_value(b, a->truth_path);
+        }
         json_builder_set_member_name(b, "elapsed_s");
         json_builder_add_double_value(b, elapsed_s);
         json_builder_set_member_name(b, "peak_rss_mb");
@@ -191,7 +308,81 @@ static void report(const sim_args *a, const sim *s, double elapsed_s)
         printf("wrote %s: %d frames of %dx%d, %.4f arcsec/px (Nyquist %.4f), "
                "%.2f s\n", a->out, o->nframes, o->width, o->height,
                sim_plate_scale_arcsec(s), sim_nyquist_arcsec(s), elapsed_s);
+        if (a->truth_path)
+            printf("wrote %s: truth and simulation parameters\n", a->truth_path);
     }
+}
+
+/* "X,Y" into two finite numbers. */
+static int parse_pair(const char *text, double *x, double *y)
+{
+    char *end;
+    *x = strtod(text, &end);
+    if (end == text || *end != ',')
+        return 0;
+    const char *p = end + 1;
+    *y = strtod(p, &end);
+    return end != p && *end == '\0' && isfinite(*x) && isfinite(*y);
+}
+
+/* The options beyond the paper's model into o; 0 with a message on stderr
+ * when one does not parse. */
+static int extra_opts(const sim_args *a, sim_opts *o)
+{
+    o->adc_bits = a->adc_bits;
+    o->hot_pixels = a->hot_pixels;
+    o->dead_pixels = a->dead_pixels;
+    o->hot_level_adu = a->hot_level_adu;
+    o->jitter_px = a->jitter_px;
+    o->pixel_aspect = a->pixel_aspect;
+    if (a->offset_px && !parse_pair(a->offset_px, &o->offset_x_px, &o->offset_y_px)) {
+        fprintf(stderr, "specklab sim: --offset-px '%s': expected X,Y in pixels, "
+                "e.g. 3.5,-2\n", a->offset_px);
+        return 0;
+    }
+    if (!a->phase_model || !strcmp(a->phase_model, "screen"))
+        o->phase_model = SIM_PHASE_SCREEN;
+    else if (!strcmp(a->phase_model, "piston"))
+        o->phase_model = SIM_PHASE_PISTON;
+    else {
+        fprintf(stderr, "specklab sim: --phase-model '%s': expected screen or "
+                "piston\n", a->phase_model);
+        return 0;
+    }
+    if (a->truth_out && !a->blind) {
+        fprintf(stderr, "specklab sim: --truth-out needs --blind (without it the "
+                "truth is in the cube's TRUTH and COPHASED extensions)\n");
+        return 0;
+    }
+    return 1;
+}
+
+/* The cube, the --blind sidecar, the previews. */
+static int write_outputs(sim_args *a, sim *s, const scene *sc, const mask *m,
+                         float *buf, sl_err *e)
+{
+    cube_meta md;
+    if (!a->blind) {
+        fill_meta(&md, a, s, sc, m, 0);
+        if (write_cube(s, a->out, &md, buf, 1, e) != SL_OK)
+            return 0;
+    } else {
+        a->truth_path = a->truth_out ? g_strdup(a->truth_out) : sidecar_path(a->out);
+        if (!strcmp(a->truth_path, a->out)) {
+            sl_seterr(e, SL_EINVAL, "--truth-out %s is the output cube itself",
+                      a->truth_path);
+            return 0;
+        }
+        camera_meta(&md, a, s);
+        if (write_cube(s, a->out, &md, buf, 0, e) != SL_OK)
+            return 0;
+        fill_meta(&md, a, s, sc, m, 1);
+        /* the sidecar's own image is the truth */
+        snprintf(md.bunit, sizeof md.bunit, "relative flux");
+        if (write_sidecar(s, a->truth_path, &md, buf, e) != SL_OK)
+            return 0;
+    }
+    return !a->png || write_pngs(s, a->png, buf, e) == SL_OK;
 }
 
 static int run(sim_args *a)
@@ -229,6 +420,8 @@ static int run(sim_args *a)
     o.gain_e_per_adu = a->gain;
     o.bias_adu = a->bias_adu;
     o.saturation_adu = a->saturation_adu;
+    if (!extra_opts(a, &o))
+        return 2;
     if (load_inputs(a, &sc, &m, &e) != SL_OK || sim_new(&s, &o, m, sc, &e) != SL_OK) {
         fprintf(stderr, "specklab sim: %s\n", e.msg);
         goto free_inputs;
@@ -236,10 +429,7 @@ static int run(sim_args *a)
     if (sim_warning(s)[0])
         fprintf(stderr, "specklab sim: warning: %s\n", sim_warning(s));
     buf = malloc(sizeof(float) * o.width * o.height);
-    cube_meta md;
-    fill_meta(&md, a, s, sc, m);
-    if (!buf || write_cube(s, a->out, &md, buf, &e) != SL_OK ||
-        (a->png && write_pngs(s, a->png, buf, &e) != SL_OK)) {
+    if (!buf || !write_outputs(a, s, sc, m, buf, &e)) {
         fprintf(stderr, "specklab sim: %s\n", buf ? e.msg : "out of memory");
         goto free_sim;
     }
@@ -281,6 +471,18 @@ int cmd_sim(int argc, char **argv)
         {"gain", 0, 0, G_OPTION_ARG_DOUBLE, &a.gain, "electrons per ADU (default 1)", "E/ADU"},
         {"bias-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.bias_adu, "bias level (default 0)", "ADU"},
         {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation_adu, "clip level (default 65535)", "ADU"},
+        {"adc-bits", 0, 0, G_OPTION_ARG_INT, &a.adc_bits, "ADC bits: codes clipped to 2^N-1; 1..8 write BITPIX 8, 9..16 unsigned 16 (default 0 = no converter, float32)", "N"},
+        {"hot-pixels", 0, 0, G_OPTION_ARG_INT, &a.hot_pixels, "hot pixels, stuck at full scale, same positions every frame (default 0)", "N"},
+        {"hot-level-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.hot_level_adu, "level of the hot pixels, e.g. a warm pixel (default full scale)", "ADU"},
+        {"dead-pixels", 0, 0, G_OPTION_ARG_INT, &a.dead_pixels, "dead pixels, 0 ADU (default 0)", "N"},
+        {"offset-px", 0, 0, G_OPTION_ARG_STRING, &a.offset_px, "scene displaced from the frame centre, sub-pixel (default 0,0)", "X,Y"},
+        {"jitter-px", 0, 0, G_OPTION_ARG_DOUBLE, &a.jitter_px, "per-frame tip-tilt jitter, rms per axis (default 0)", "PX"},
+        {"pixel-aspect", 0, 0, G_OPTION_ARG_DOUBLE, &a.pixel_aspect, "pixel height / width in [0.5, 2]; --plate-scale is the x pitch (default 1)", "A"},
+        {"phase-model", 0, 0, G_OPTION_ARG_STRING, &a.phase_model, "screen|piston: piston = each hole's mean phase, hole masks only (default screen)", "MODEL"},
+        {"aperture-m", 0, 0, G_OPTION_ARG_DOUBLE, &a.aperture_m, "diameter of --mask full (default 1.1)", "M"},
+        {"obstruction", 0, 0, G_OPTION_ARG_DOUBLE, &a.obstruction, "central obstruction of --mask full, fraction of the diameter (default 0)", "F"},
+        {"blind", 0, 0, G_OPTION_ARG_NONE, &a.blind, "write the cube as a camera would (no SIM* keywords, no truth); truth to a sidecar", NULL},
+        {"truth-out", 0, 0, G_OPTION_ARG_FILENAME, &a.truth_out, "the --blind sidecar (default OUTPUT-truth.fits)", "FILE"},
         {"object", 0, 0, G_OPTION_ARG_STRING, &a.object, "OBJECT keyword (default the scene name)", "NAME"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS file (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write PREFIX-frame0/truth/cophased.png", "PREFIX"},
@@ -292,7 +494,8 @@ int cmd_sim(int argc, char **argv)
     g_option_context_set_description(ctx,
         "Defaults are the paper's Table 1: 100 frames, 500 nm, r0 = 0.2 m, wind 10 m/s,\n"
         "17-hole mask (10 cm holes, 1 m maximum baseline), sampled at Nyquist.\n"
-        "Output: FITS cube (primary HDU) + TRUTH and COPHASED image extensions.");
+        "Output: FITS cube (primary HDU) + TRUTH and COPHASED image extensions;\n"
+        "with --blind, a camera-like cube and the truth in a sidecar file.");
     int status = 2;
     if (!cli_parse(ctx, &argc, &argv))
         goto free_ctx;
@@ -309,5 +512,7 @@ free_ctx:
     g_option_context_free(ctx);
     g_free(a.scene); g_free(a.mask); g_free(a.size); g_free(a.out);
     g_free(a.png); g_free(a.object);
+    g_free(a.offset_px); g_free(a.phase_model); g_free(a.truth_out);
+    g_free(a.truth_path);
     return status;
 }

@@ -13,6 +13,7 @@ struct mask {
     int nholes;            /* 0 for a filled aperture */
     double hole_d_m;       /* 0 for a filled aperture */
     double diameter_m;     /* filled aperture; 0 for holes */
+    double obstruction;    /* filled: central obstruction / diameter */
     double extent_m, max_baseline_m, min_spacing_m;
     long redundancy;       /* -1 for a filled aperture */
     char name[16];
@@ -125,6 +126,29 @@ mask *mask_new_full(double diameter_m)
     m->extent_m = diameter_m;
     m->max_baseline_m = diameter_m;
     m->redundancy = -1;
+    return m;
+}
+
+mask *mask_new_full_obstructed(double diameter_m, double obstruction,
+                               sl_err *err)
+{
+    if (!(isfinite(diameter_m) && diameter_m > 0)) {
+        sl_seterr(err, SL_EINVAL, "mask: aperture diameter %g m is not > 0",
+                  diameter_m);
+        return NULL;
+    }
+    if (!(obstruction >= 0 && obstruction <= MASK_MAX_OBSTRUCTION)) {
+        sl_seterr(err, SL_EINVAL, "mask: central obstruction %g (a fraction "
+                  "of the diameter) must lie in [0, %g]", obstruction,
+                  MASK_MAX_OBSTRUCTION);
+        return NULL;
+    }
+    mask *m = mask_new_full(diameter_m);
+    if (!m) {
+        sl_seterr(err, SL_ENOMEM, "mask: out of memory");
+        return NULL;
+    }
+    m->obstruction = obstruction;
     return m;
 }
 
@@ -321,6 +345,7 @@ int mask_nholes(const mask *m) { return m->nholes; }
 double mask_hole_diameter_m(const mask *m) { return m->hole_d_m; }
 int mask_is_full(const mask *m) { return m->nholes == 0; }
 double mask_diameter_m(const mask *m) { return m->diameter_m; }
+double mask_obstruction(const mask *m) { return m->obstruction; }
 double mask_extent_m(const mask *m) { return m->extent_m; }
 double mask_max_baseline_m(const mask *m) { return m->max_baseline_m; }
 double mask_min_spacing_m(const mask *m) { return m->min_spacing_m; }
@@ -342,7 +367,7 @@ void mask_hole(const mask *m, int i, double *x_m, double *y_m)
  * (integer offset - h), so a mirrored layout renders bit-exactly mirrored.
  * Only edge pixels are supersampled: about 2*pi*r of them per disk. */
 static void render_disk(float *pupil, int n, double hx, double hy,
-                        double r)
+                        double r, int subtract)
 {
     int c = n / 2;
     double r2 = r * r;
@@ -378,7 +403,10 @@ static void render_disk(float *pupil, int n, double hx, double hy,
                 cov = (float)hits / (RENDER_SUB * RENDER_SUB);
             }
             float *px = &pupil[(size_t)iy * n + ix];
-            *px = *px + cov > 1.0f ? 1.0f : *px + cov; /* shared edges */
+            if (subtract) /* an obstruction: take its coverage away */
+                *px = *px - cov < 0.0f ? 0.0f : *px - cov;
+            else
+                *px = *px + cov > 1.0f ? 1.0f : *px + cov; /* shared edges */
         }
     }
 }
@@ -409,6 +437,8 @@ int mask_render(const mask *m, float *pupil, int n, double dx_m,
     memset(pupil, 0, (size_t)n * (size_t)n * sizeof *pupil);
     for (int i = 0; i < nd; i++)
         render_disk(pupil, n, m->nholes ? m->x_m[i] / dx_m : 0,
-                    m->nholes ? m->y_m[i] / dx_m : 0, r);
+                    m->nholes ? m->y_m[i] / dx_m : 0, r, 0);
+    if (m->obstruction > 0)
+        render_disk(pupil, n, 0, 0, r * m->obstruction, 1);
     return SL_OK;
 }

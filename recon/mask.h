@@ -39,6 +39,13 @@ typedef struct mask mask;
 /* A filled circular aperture of the given diameter; NULL if diameter_m is
  * not finite and > 0, or out of memory. */
 mask *mask_new_full(double diameter_m);
+/* A filled aperture with a central obstruction (a secondary mirror) of
+ * obstruction * diameter_m across, obstruction in [0,
+ * MASK_MAX_OBSTRUCTION]; 0 is mask_new_full.  The extent stays the outer
+ * diameter.  NULL with err set (SL_EINVAL, SL_ENOMEM). */
+#define MASK_MAX_OBSTRUCTION 0.9
+mask *mask_new_full_obstructed(double diameter_m, double obstruction,
+                               sl_err *err);
 /* Holes of one diameter at centres (x_m[i], y_m[i]); NULL with err set on
  * fewer than 2 or more than MASK_MAX_HOLES holes (SL_EINVAL), non-finite
  * numbers or overlapping holes (SL_EDATA), out of memory (SL_ENOMEM). */
@@ -101,6 +108,8 @@ void mask_hole(const mask *m, int i, double *x_m, double *y_m);
 double mask_hole_diameter_m(const mask *m); /* 0 for a filled aperture */
 int mask_is_full(const mask *m);
 double mask_diameter_m(const mask *m);     /* filled: D; holes: 0 */
+/* Central obstruction as a fraction of D; 0 for holes or none. */
+double mask_obstruction(const mask *m);
 /* Outer diameter of the pupil: the longest centre distance + d for holes,
  * D for a filled aperture. */
 double mask_extent_m(const mask *m);
@@ -115,8 +124,9 @@ const char *mask_name(const mask *m);
 
 /* Rasterize the transmission (0..1) into pupil[n*n] (pixel (x, y) at
  * pupil[y*n + x]) with pitch dx_m and the pupil origin at pixel (n/2, n/2).
- * Interior pixels are exactly 1, outside pixels exactly 0, edge pixels the
- * covered fraction from 8x8 supersampling.  Costs O(n^2) to clear plus
+ * Interior pixels are exactly 1, outside pixels (and those behind a central
+ * obstruction) exactly 0, edge pixels the covered fraction from 8x8
+ * supersampling.  Costs O(n^2) to clear plus
  * O(pixels inside the holes' bounding boxes).  SL_ERANGE (message in err)
  * if any part of the pupil falls outside the grid, e.g. extent > n*dx_m.
  * The grid spans pixel offsets -n/2 - 0.5 .. n - 1 - n/2 + 0.5 from the

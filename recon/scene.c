@@ -307,20 +307,20 @@ static double disk_brightness(const scene_comp *c, double dx, double dy)
  * * 64 brightness samples.  SL_ERANGE (nothing drawn) for a disk larger
  * than that; a disk wholly off the grid is skipped. */
 static int render_disk(const scene_comp *c, float *img, int w, int h,
-                       double ps)
+                       double psx, double psy)
 {
     const int ss = 4;
-    double cx = w / 2 + c->x_arcsec / ps, cy = h / 2 + c->y_arcsec / ps;
-    double rp = c->radius_arcsec / ps + 1;
+    double cx = w / 2 + c->x_arcsec / psx, cy = h / 2 + c->y_arcsec / psy;
+    double rpx = c->radius_arcsec / psx + 1, rpy = c->radius_arcsec / psy + 1;
     /* The box [floor(cx - rp), ceil(cx + rp)] misses the grid: nothing to
      * draw.  Otherwise |cx|, |cy| <= grid + rp, so with the cap on rp every
      * bound below fits an int (fuzzing found 1e300 arcsec offsets). */
-    if (cx + rp < -1 || cx - rp > w || cy + rp < -1 || cy - rp > h)
+    if (cx + rpx < -1 || cx - rpx > w || cy + rpy < -1 || cy - rpy > h)
         return SL_OK;
-    if (!(rp <= SCENE_MAX_DISK_RADIUS_PX))
+    if (!(rpx <= SCENE_MAX_DISK_RADIUS_PX && rpy <= SCENE_MAX_DISK_RADIUS_PX))
         return SL_ERANGE;
-    int x0 = (int)floor(cx - rp), x1 = (int)ceil(cx + rp);
-    int y0 = (int)floor(cy - rp), y1 = (int)ceil(cy + rp);
+    int x0 = (int)floor(cx - rpx), x1 = (int)ceil(cx + rpx);
+    int y0 = (int)floor(cy - rpy), y1 = (int)ceil(cy + rpy);
     double total = 0;
     /* Two passes: the normalisation uses the whole disk, even if clipped. */
     for (int pass = 0; pass < 2; pass++) {
@@ -330,8 +330,8 @@ static int render_disk(const scene_comp *c, float *img, int w, int h,
                 double sum = 0;
                 for (int sy = 0; sy < ss; sy++)
                     for (int sx = 0; sx < ss; sx++) {
-                        double dx = (x + (sx + 0.5) / ss - 0.5 - cx) * ps;
-                        double dy = (y + (sy + 0.5) / ss - 0.5 - cy) * ps;
+                        double dx = (x + (sx + 0.5) / ss - 0.5 - cx) * psx;
+                        double dy = (y + (sy + 0.5) / ss - 0.5 - cy) * psy;
                         sum += disk_brightness(c, dx, dy);
                     }
                 if (!pass)
@@ -348,18 +348,27 @@ static int render_disk(const scene_comp *c, float *img, int w, int h,
 int scene_render(const scene *s, float *img, int w, int h,
                  double pscale_arcsec, int omit_points)
 {
-    if (!(pscale_arcsec > 0 && isfinite(pscale_arcsec)) || w <= 0 || h <= 0)
-        return SL_EINVAL; /* Inf: 0 * Inf offsets would make NaN pixels */
+    return scene_render_rect(s, img, w, h, pscale_arcsec, pscale_arcsec,
+                             omit_points);
+}
+
+int scene_render_rect(const scene *s, float *img, int w, int h,
+                      double psx_arcsec, double psy_arcsec, int omit_points)
+{
+    /* Inf: 0 * Inf offsets would make NaN pixels */
+    if (!(psx_arcsec > 0 && isfinite(psx_arcsec)) ||
+        !(psy_arcsec > 0 && isfinite(psy_arcsec)) || w <= 0 || h <= 0)
+        return SL_EINVAL;
     int rc = SL_OK;
     memset(img, 0, (size_t)w * h * sizeof *img);
     for (int i = 0; i < s->n && rc == SL_OK; i++) {
         const scene_comp *c = &s->comp[i];
         if (c->kind == SCENE_POINT) {
             if (!omit_points)
-                splat_point(img, w, h, w / 2 + c->x_arcsec / pscale_arcsec,
-                            h / 2 + c->y_arcsec / pscale_arcsec, c->flux);
+                splat_point(img, w, h, w / 2 + c->x_arcsec / psx_arcsec,
+                            h / 2 + c->y_arcsec / psy_arcsec, c->flux);
         } else {
-            rc = render_disk(c, img, w, h, pscale_arcsec);
+            rc = render_disk(c, img, w, h, psx_arcsec, psy_arcsec);
         }
     }
     if (rc != SL_OK) /* a partial image must not pass for the scene */

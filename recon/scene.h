@@ -71,5 +71,9 @@ int scene_read(scene **out, const char *path, sl_err *err);
 #define SCENE_MAX_DISK_RADIUS_PX 1024
 int scene_render(const scene *s, float *img, int w, int h,
                  double pscale_arcsec, int omit_points);
+/* The same on pixels psx_arcsec wide and psy_arcsec tall (a detector with
+ * non-square pixels); scene_render is psx = psy = pscale_arcsec. */
+int scene_render_rect(const scene *s, float *img, int w, int h,
+                      double psx_arcsec, double psy_arcsec, int omit_points);
 
 #endif

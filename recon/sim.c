@@ -1,4 +1,6 @@
-/* sim.c - see sim.h for the physics, sampling and photometry. */
+/* sim.c - see sim.h for the physics, sampling and photometry.  This file
+ * plans (options, sampling, pupil, screen, object, detector); sim_frame.c
+ * renders frames. */
 #include "sim.h"
 
 #include <complex.h>
@@ -8,32 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rng.h"
-#include "screen.h"
+#include "sim_int.h"
 
-#define ARCSEC_PER_RAD (180.0 * 3600.0 / M_PI)
 #define SCREEN_MAX_PX 2048 /* peak 80 MiB while generating; longer flows change lane */
-
-struct sim {
-    sim_opts o;
-    sl_err err;
-    char warning[320];
-    int M, k;            /* grid size, oversampling factor */
-    int win, win0;       /* pupil window size and origin in the grid */
-    double pscale;       /* arcsec per output pixel */
-    double p_nyq;        /* Nyquist plate scale, arcsec */
-    double dx, E;        /* pupil pitch and extent, m */
-    double psf_scale;    /* 1 / sum |FFT(field)|^2 */
-    float *pupil;        /* win x win transmission */
-    float *phase;        /* win x win, radians */
-    float *truth;        /* w x h, relative flux */
-    fftwf_complex *fin, *fout;   /* M x M pupil field and its FFT */
-    float *psf;                  /* M x M */
-    fftwf_complex *otf, *obj;    /* M x (M/2+1) */
-    float *img;                  /* M x M convolved image */
-    fftwf_plan p_field, p_psf, p_img;
-    screen *scr;
-};
 
 void sim_opts_defaults(sim_opts *o)
 {
@@ -55,6 +34,9 @@ void sim_opts_defaults(sim_opts *o)
     o->gain_e_per_adu = 1;
     o->bias_adu = 0;
     o->saturation_adu = 65535;
+    o->hot_level_adu = NAN;
+    o->pixel_aspect = 1;
+    o->phase_model = SIM_PHASE_SCREEN;
     o->fftw_flags = FFTW_MEASURE;
 }
 
@@ -68,6 +50,52 @@ double sim_pupil_extent_m(const sim *s) { return s->E; }
 const char *sim_warning(const sim *s) { return s->warning; }
 const sim_opts *sim_options(const sim *s) { return &s->o; }
 int sim_window_px(const sim *s) { return s->win; }
+const detector *sim_detector(const sim *s) { return s->det; }
+
+static void detector_opts_of(const sim_opts *o, detector_opts *d)
+{
+    detector_opts_defaults(d);
+    d->photons_per_frame = o->photons_per_frame;
+    d->read_noise_e = o->read_noise_e;
+    d->gain_e_per_adu = o->gain_e_per_adu;
+    d->bias_adu = o->bias_adu;
+    d->saturation_adu = o->saturation_adu;
+    d->adc_bits = o->adc_bits;
+    d->hot_pixels = o->hot_pixels;
+    d->dead_pixels = o->dead_pixels;
+    d->hot_level_adu = o->hot_level_adu;
+}
+
+int sim_output_bitpix(const sim *s)
+{
+    detector_opts d;
+    detector_opts_of(&s->o, &d);
+    return detector_bitpix(&d);
+}
+
+/* Pointing, pixel shape and phase model. */
+static int check_geometry(const sim_opts *o, sl_err *e)
+{
+    if (!(fabs(o->offset_x_px) <= o->width / 2.0 &&
+          fabs(o->offset_y_px) <= o->height / 2.0))
+        return sl_seterr(e, SL_EINVAL, "offset (%g, %g) px must be finite and "
+                         "within half the %dx%d frame", o->offset_x_px,
+                         o->offset_y_px, o->width, o->height);
+    int small = o->width < o->height ? o->width : o->height;
+    if (!(o->jitter_px >= 0 && o->jitter_px <= small / 4.0))
+        return sl_seterr(e, SL_EINVAL, "jitter %g px rms must lie in [0, %g] "
+                         "(a quarter of the frame's smaller side)",
+                         o->jitter_px, small / 4.0);
+    if (!(o->pixel_aspect >= 0.5 && o->pixel_aspect <= 2))
+        return sl_seterr(e, SL_EINVAL, "pixel aspect %g (pixel height / "
+                         "width) must lie in [0.5, 2]", o->pixel_aspect);
+    if (o->phase_model != SIM_PHASE_SCREEN &&
+        o->phase_model != SIM_PHASE_PISTON)
+        return sl_seterr(e, SL_EINVAL, "phase model %d is neither screen (%d) "
+                         "nor piston (%d)", o->phase_model, SIM_PHASE_SCREEN,
+                         SIM_PHASE_PISTON);
+    return SL_OK;
+}
 
 static int check_opts(const sim_opts *o, sl_err *e)
 {
@@ -92,39 +120,72 @@ static int check_opts(const sim_opts *o, sl_err *e)
     if (!(o->photons_per_frame >= 0 && isfinite(o->photons_per_frame)))
         return sl_seterr(e, SL_EINVAL, "photons per frame %g must be >= 0",
                          o->photons_per_frame);
-    if (o->photons_per_frame > 0 &&
-        !(o->gain_e_per_adu > 0 && o->read_noise_e >= 0 &&
-          o->saturation_adu > o->bias_adu))
-        return sl_seterr(e, SL_EINVAL, "detector needs gain > 0, read noise "
-                         ">= 0 and saturation above bias");
-    return SL_OK;
+    if (o->photons_per_frame == 0 &&
+        (o->adc_bits != 0 || o->hot_pixels != 0 || o->dead_pixels != 0))
+        return sl_seterr(e, SL_EINVAL, "ADC bits (%d), hot (%d) and dead "
+                         "(%d) pixels model the detector: they need photons "
+                         "per frame > 0 (noiseless frames are relative flux)",
+                         o->adc_bits, o->hot_pixels, o->dead_pixels);
+    if (o->photons_per_frame > 0) {
+        detector_opts d;
+        detector_opts_of(o, &d);
+        int rc = detector_check(&d, o->width, o->height, e);
+        if (rc != SL_OK)
+            return rc;
+    }
+    return check_geometry(o, e);
+}
+
+/* The undersampling warning: x pitch coarser than Nyquist (kn > 1), or
+ * only the taller rows of non-square pixels. */
+static void set_warning(sim *s, int kn)
+{
+    const sim_opts *o = &s->o;
+    double ypitch = s->pscale * o->pixel_aspect;
+    if (kn > 1)
+        snprintf(s->warning, sizeof s->warning,
+                 "plate scale %.4f arcsec/px undersamples the %.3f m pupil's "
+                 "fringes at %.0f nm (Nyquist is %.4f arcsec/px): they alias; "
+                 "simulating %dx finer and binning", s->pscale, s->E,
+                 o->wavelength_m * 1e9, s->p_nyq, s->k);
+    else if (ypitch > s->p_nyq * (1 + 1e-9))
+        snprintf(s->warning, sizeof s->warning,
+                 "pixel height %.4f arcsec (aspect %.3g) undersamples the "
+                 "%.3f m pupil's fringes at %.0f nm (Nyquist is %.4f "
+                 "arcsec/px): they alias along y; each pixel sums %.3g "
+                 "Nyquist-sampled rows", ypitch, o->pixel_aspect, s->E,
+                 o->wavelength_m * 1e9, s->p_nyq, s->ky);
 }
 
 /* Sampling: choose the plate scale, oversampling and grid (see sim.h). */
 static int plan_sampling(sim *s, const mask *m)
 {
     const sim_opts *o = &s->o;
+    double A = o->pixel_aspect;
     s->E = mask_extent_m(m);
     if (!(s->E > 0))
         return sl_seterr(&s->err, SL_EINVAL, "pupil has no extent");
     s->p_nyq = o->wavelength_m / (2 * s->E) * ARCSEC_PER_RAD;
     s->pscale = o->plate_scale_arcsec > 0 ? o->plate_scale_arcsec : s->p_nyq;
-    s->k = (int)ceil(s->pscale / s->p_nyq - 1e-9);
-    if (s->k < 1)
-        s->k = 1;
-    if (s->k > 1)
-        snprintf(s->warning, sizeof s->warning,
-                 "plate scale %.4f arcsec/px undersamples the %.3f m pupil's "
-                 "fringes at %.0f nm (Nyquist is %.4f arcsec/px): they alias; "
-                 "simulating %dx finer and binning", s->pscale, s->E,
-                 o->wavelength_m * 1e9, s->p_nyq, s->k);
+    int kn = (int)ceil(s->pscale / s->p_nyq - 1e-9);
+    s->k = kn < 1 ? 1 : kn;
+    if (A < 1 && s->k < (int)ceil(1 / A - 1e-9))
+        s->k = (int)ceil(1 / A - 1e-9); /* no output row thinner than a fine row */
     int side = o->width > o->height ? o->width : o->height;
-    if ((long)side * s->k > 16384)
-        return sl_seterr(&s->err, SL_ERANGE, "grid %d x %d needed for plate "
+    long M = (long)side * s->k;
+    if (A != 1) {
+        /* A k h fine rows and a margin row at each end */
+        long rows = (long)ceil(A * s->k * o->height - 1e-9) + 2;
+        M = (long)o->width * s->k > rows ? (long)o->width * s->k : rows;
+    }
+    if (M > 16384)
+        return sl_seterr(&s->err, SL_ERANGE, "grid %ld x %ld needed for plate "
                          "scale %.4f arcsec/px is too large; choose a finer "
-                         "plate scale or smaller frames", side * s->k,
-                         side * s->k, s->pscale);
-    s->M = side * s->k;
+                         "plate scale or smaller frames", M, M, s->pscale);
+    s->M = (int)M;
+    s->ky = A == 1 ? s->k : A * s->k;
+    s->oy = (s->M - s->ky * o->height) / 2;
+    set_warning(s, kn);
     double p_int_rad = s->pscale / s->k / ARCSEC_PER_RAD;
     s->dx = o->wavelength_m / (s->M * p_int_rad);
     s->win = (int)ceil(s->E / s->dx) + 4;
@@ -206,6 +267,8 @@ static int make_object(sim *s, const scene *sc)
                 (s->k - 1) / 2.0;
     double cy = (M - s->k * s->o.height) / 2 + (s->o.height / 2) * s->k +
                 (s->k - 1) / 2.0;
+    if (s->o.pixel_aspect != 1) /* centre of output row h/2, fine samples */
+        cy = s->oy + (s->o.height / 2 + 0.5) * s->ky - 0.5;
     float *r = fftwf_alloc_real((size_t)M * M);
     if (!r)
         return sl_seterr(&s->err, SL_ENOMEM, "out of memory for the object");
@@ -233,7 +296,8 @@ static int make_object(sim *s, const scene *sc)
     fftwf_free(r);
     /* The truth on the output grid. */
     size_t np = (size_t)s->o.width * s->o.height;
-    scene_render(sc, s->truth, s->o.width, s->o.height, s->pscale, 0);
+    scene_render_rect(sc, s->truth, s->o.width, s->o.height, s->pscale,
+                      s->pscale * s->o.pixel_aspect, 0);
     for (size_t i = 0; i < np; i++)
         s->truth[i] = (float)(s->truth[i] / F);
     return rc;
@@ -251,8 +315,12 @@ static int alloc_buffers(sim *s)
     s->img = fftwf_alloc_real(MM);
     s->otf = fftwf_alloc_complex(MH);
     s->obj = fftwf_alloc_complex(MH);
+    s->rx = fftwf_alloc_complex((size_t)s->M / 2 + 1);
+    s->ry = fftwf_alloc_complex((size_t)s->M);
+    s->acc = calloc((size_t)s->o.width, sizeof *s->acc);
     if (!s->pupil || !s->phase || !s->truth || !s->fin || !s->fout ||
-        !s->psf || !s->img || !s->otf || !s->obj)
+        !s->psf || !s->img || !s->otf || !s->obj || !s->rx || !s->ry ||
+        !s->acc)
         return sl_seterr(&s->err, SL_ENOMEM, "out of memory for a %d x %d "
                          "simulation grid", s->M, s->M);
     int M = s->M;
@@ -279,9 +347,16 @@ int sim_new(sim **out, const sim_opts *o, const mask *m, const scene *sc,
         return sl_seterr(err, SL_ENOMEM, "out of memory");
     s->o = *o;
     if ((rc = plan_sampling(s, m)) != SL_OK || (rc = alloc_buffers(s)) != SL_OK
-        || (rc = make_pupil(s, m)) != SL_OK || (rc = make_screen(s)) != SL_OK
-        || (rc = make_object(s, sc)) != SL_OK)
+        || (rc = make_pupil(s, m)) != SL_OK || (rc = sim_make_labels(s, m)) != SL_OK
+        || (rc = make_screen(s)) != SL_OK || (rc = make_object(s, sc)) != SL_OK)
         goto free_sim;
+    if (o->photons_per_frame > 0) {
+        detector_opts d;
+        detector_opts_of(o, &d);
+        rc = detector_new(&s->det, &d, o->width, o->height, o->seed, &s->err);
+        if (rc != SL_OK)
+            goto free_sim;
+    }
     *out = s;
     return SL_OK;
 free_sim:
@@ -309,138 +384,18 @@ void sim_free(sim *s)
     free(s->pupil);
     free(s->phase);
     free(s->truth);
+    fftwf_free(s->rx);
+    fftwf_free(s->ry);
+    free(s->acc);
+    free(s->hole);
+    free(s->hsum);
+    detector_free(s->det);
     screen_free(s->scr);
     free(s);
-}
-
-int sim_phase_window(sim *s, int k, float *phase)
-{
-    size_t n = (size_t)s->win * s->win;
-    if (!s->scr) {
-        memset(phase, 0, n * sizeof *phase);
-        return SL_OK;
-    }
-    /* Frozen flow along dir.  The screen's fine grid repeats every n dx
-     * (22.5 m at 200^2 and Nyquist), so after each such lap of flow the
-     * pupil moves sideways to a fresh lane (win + 2 px over): a long
-     * sequence (more frames, a longer frame interval) sees new turbulence
-     * for n / (win + 2) laps instead of the same frames again.  Within a
-     * lap the flow is continuous; sequences shorter than one lap (the
-     * default 100 frames at 10 ms, 10 m/s) are unchanged. */
-    double t = k * s->o.frame_interval_s, dir = s->o.wind_dir_deg * M_PI / 180;
-    double d = s->o.wind_mps * t, period = screen_n(s->scr) * s->dx;
-    double lane = floor(d / period) * (s->win + 2) * s->dx;
-    double x0 = (s->win0 - s->M / 2) * s->dx - d * cos(dir) + lane * sin(dir);
-    double y0 = (s->win0 - s->M / 2) * s->dx - d * sin(dir) - lane * cos(dir);
-    return screen_sample(s->scr, phase, s->win, s->win, x0, y0, s->dx);
-}
-
-/* PSF of frame k (k < 0: cophased) into s->psf, unit sum, origin at [0]. */
-static int compute_psf(sim *s, int k)
-{
-    int rc = SL_OK;
-    if (k >= 0)
-        rc = sim_phase_window(s, k, s->phase);
-    else
-        memset(s->phase, 0, (size_t)s->win * s->win * sizeof *s->phase);
-    if (rc != SL_OK)
-        return rc;
-    for (int y = 0; y < s->win; y++) {
-        fftwf_complex *row = s->fin + (size_t)(s->win0 + y) * s->M + s->win0;
-        const float *pu = s->pupil + (size_t)y * s->win;
-        const float *ph = s->phase + (size_t)y * s->win;
-        for (int x = 0; x < s->win; x++)
-            row[x] = pu[x] * (cosf(ph[x]) + I * sinf(ph[x]));
-    }
-    fftwf_execute(s->p_field);
-    size_t MM = (size_t)s->M * s->M;
-    float sc = (float)s->psf_scale;
-    for (size_t i = 0; i < MM; i++) {
-        float re = crealf(s->fout[i]), im = cimagf(s->fout[i]);
-        s->psf[i] = (re * re + im * im) * sc;
-    }
-    return SL_OK;
-}
-
-/* Convolve s->psf with the object into s->img (fine grid), then bin and
- * crop into out (w x h). */
-static void convolve_bin(sim *s, float *out)
-{
-    size_t MH = (size_t)s->M * (s->M / 2 + 1);
-    fftwf_execute(s->p_psf);
-    for (size_t i = 0; i < MH; i++)
-        s->otf[i] *= s->obj[i];
-    fftwf_execute(s->p_img); /* destroys otf, by FFTW's c2r contract */
-    int w = s->o.width, h = s->o.height, k = s->k;
-    int ox = (s->M - k * w) / 2, oy = (s->M - k * h) / 2;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            double sum = 0;
-            for (int j = 0; j < k; j++) {
-                const float *row = s->img + (size_t)(oy + y * k + j) * s->M +
-                                   ox + x * k;
-                for (int i = 0; i < k; i++)
-                    sum += row[i];
-            }
-            out[(size_t)y * w + x] = (float)sum;
-        }
-}
-
-static void detect(const sim *s, int k, float *frame)
-{
-    const sim_opts *o = &s->o;
-    rng r;
-    rng_init(&r, o->seed, 0x100000ULL + (uint64_t)k);
-    size_t n = (size_t)o->width * o->height;
-    for (size_t i = 0; i < n; i++) {
-        double lam = frame[i] > 0 ? frame[i] * o->photons_per_frame : 0;
-        double e = (double)rng_poisson(&r, lam);
-        if (o->read_noise_e > 0)
-            e += o->read_noise_e * rng_normal(&r);
-        double adu = nearbyint(e / o->gain_e_per_adu + o->bias_adu);
-        if (adu < 0)
-            adu = 0;
-        if (adu > o->saturation_adu)
-            adu = o->saturation_adu;
-        frame[i] = (float)adu;
-    }
-}
-
-int sim_frame(sim *s, int k, float *frame)
-{
-    if (k < 0)
-        return sl_seterr(&s->err, SL_EINVAL, "frame index %d < 0", k);
-    int rc = compute_psf(s, k);
-    if (rc != SL_OK)
-        return rc;
-    convolve_bin(s, frame);
-    if (s->o.photons_per_frame > 0)
-        detect(s, k, frame);
-    return SL_OK;
-}
-
-int sim_cophased(sim *s, float *img)
-{
-    int rc = compute_psf(s, -1);
-    if (rc == SL_OK)
-        convolve_bin(s, img);
-    return rc;
 }
 
 int sim_truth(sim *s, float *img)
 {
     memcpy(img, s->truth, (size_t)s->o.width * s->o.height * sizeof *img);
-    return SL_OK;
-}
-
-int sim_psf(sim *s, int k, float *psf)
-{
-    int rc = compute_psf(s, k < 0 ? -1 : k), M = s->M;
-    if (rc != SL_OK)
-        return rc;
-    for (int y = 0; y < M; y++)
-        for (int x = 0; x < M; x++)
-            psf[(size_t)((y + M / 2) % M) * M + (x + M / 2) % M] =
-                s->psf[(size_t)y * M + x];
     return SL_OK;
 }

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "binmeas.h"
 #include "cli.h"
 #include "cmd_daemon.h"
 #include "cube.h"
@@ -51,67 +52,6 @@ static void probe_json(JsonBuilder *b, const cube_meta *m)
     json_builder_end_object(b);
 }
 
-/* The closure-phase binary fit that `recon --binary` leaves in the header
- * (pipeline.h, CP*); have = 0 without one. */
-typedef struct cp_fit {
-    int have, ok;
-    const char *status;
-    double sep_px, sep_err_px, pa_deg, pa_err_deg, dm_mag, dm_err_mag;
-    double ambiguous, ntriples;
-} cp_fit;
-
-static void cp_read(const cube_meta *m, cp_fit *c)
-{
-    memset(c, 0, sizeof *c);
-    c->have = cube_meta_get_str(m, "CPSTAT", &c->status) == SL_OK;
-    c->ok = c->have && !strcmp(c->status, "ok") &&
-            cube_meta_get_num(m, "CPSEP", &c->sep_px) == SL_OK &&
-            cube_meta_get_num(m, "CPPA", &c->pa_deg) == SL_OK &&
-            cube_meta_get_num(m, "CPDM", &c->dm_mag) == SL_OK;
-    cube_meta_get_num(m, "CPSEPE", &c->sep_err_px);
-    cube_meta_get_num(m, "CPPAE", &c->pa_err_deg);
-    cube_meta_get_num(m, "CPDME", &c->dm_err_mag);
-    cube_meta_get_num(m, "CPAMBIG", &c->ambiguous);
-    cube_meta_get_num(m, "CPNTRI", &c->ntriples);
-}
-
-static void cp_json(JsonBuilder *b, const cp_fit *c, double ps)
-{
-    if (!c->have)
-        return;
-    json_builder_set_member_name(b, "closure_phase");
-    json_builder_begin_object(b);
-    cli_json_str(b, "status", c->status);
-    if (c->ok) {
-        cli_json_num(b, "sep_px", c->sep_px);
-        cli_json_num(b, "sep_err_px", c->sep_err_px);
-        cli_json_num(b, "pa_deg", c->pa_deg);
-        cli_json_num(b, "pa_err_deg", c->pa_err_deg);
-        cli_json_num(b, "dm_mag", c->dm_mag);
-        cli_json_num(b, "dm_err_mag", c->dm_err_mag);
-        cli_json_num(b, "sep_arcsec", c->sep_px * ps);
-        cli_json_num(b, "triples", c->ntriples);
-        json_builder_set_member_name(b, "pa_ambiguous");
-        json_builder_add_boolean_value(b, c->ambiguous != 0);
-    }
-    json_builder_end_object(b);
-}
-
-static void cp_print(const cp_fit *c, double ps)
-{
-    if (!c->have)
-        return;
-    if (!c->ok) {
-        printf("  closure phases: no binary (%s)\n", c->status);
-        return;
-    }
-    printf("  closure phases: sep %.3f +- %.3f px", c->sep_px, c->sep_err_px);
-    if (isfinite(ps))
-        printf(" (%.4f arcsec)", c->sep_px * ps);
-    printf(", PA %.2f +- %.2f deg, dm %.3f +- %.3f mag (%.0f triples)\n",
-           c->pa_deg, c->pa_err_deg, c->dm_mag, c->dm_err_mag, c->ntriples);
-}
-
 static void recon_report(const recon_args *a, const pipeline_opts *o,
                          const pipeline_result *r, const char *input)
 {
@@ -141,9 +81,7 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
         json_builder_end_object(b);
         probe_json(b, &r->meta);
-        cp_fit cp;
-        cp_read(&r->meta, &cp);
-        cp_json(b, &cp, r->plate_scale_arcsec);
+        binmeas_json(b, &r->binary, r->plate_scale_arcsec);
         json_builder_set_member_name(b, "frames");
         json_builder_add_int_value(b, r->nframes);
         json_builder_set_member_name(b, "width");
@@ -177,9 +115,7 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         if (cube_meta_get_str(&r->meta, "RECCHOSE", &chosen) == SL_OK &&
             cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK)
             printf("  chosen: %s (predicted 1 - c %.3f)\n", chosen, pred);
-        cp_fit cp;
-        cp_read(&r->meta, &cp);
-        cp_print(&cp, r->plate_scale_arcsec);
+        binmeas_print(&r->binary, r->plate_scale_arcsec);
     }
 }
 
@@ -247,12 +183,13 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     o.target_path = a->target;
     o.wiener = a->wiener;
     o.nthreads = a->threads;
+    if (a->refine < -1) {
+        fprintf(stderr, "specklab recon: --refine %d: want -1 (automatic), 0 "
+                        "(none) or a number of passes\n", a->refine);
+        return 2;
+    }
     o.refine_iters = a->refine;
     o.closure_binary = a->binary;
-    if (a->binary && o.method != PIPE_DIRECT)
-        fprintf(stderr, "specklab recon: warning: --binary fits the direct "
-                "bispectrum's closure phases; with --method %s it does nothing\n",
-                pipeline_method_name(o.method));
     pipeline_result r;
     sl_err e = {0};
     if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
@@ -288,6 +225,7 @@ int cmd_recon(int argc, char **argv)
             if (cmd_recon_is_run_id(argv[i]))
                 return cmd_recon_run(argc, argv);
     recon_args a = {0};
+    a.refine = -1;
     GOptionEntry entries[] = {
         {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier|auto (default tsm)", "M"},
         {"target-error", 0, 0, G_OPTION_ARG_DOUBLE, &a.target_error, "auto: the 1 - c wanted (default 0.1)", "E"},
@@ -309,8 +247,8 @@ int cmd_recon(int argc, char **argv)
         {"no-detect", 0, 0, G_OPTION_ARG_NONE, &a.no_detect, "do not learn the detector from the raw frames (bad pixels, saturation, sky region, recentring)", NULL},
         {"no-recentre", 0, 0, G_OPTION_ARG_NONE, &a.no_recentre, "do not recentre frames on the speckle cloud", NULL},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
-        {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default 0)", "N"},
-        {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "direct: also fit a binary to the bispectrum's closure phases (header CP*; `specklab binary` reports it)", NULL},
+        {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default -1: up to 40 when the phase recursion's closure misfit says it went astray; 0: none)", "N"},
+        {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "also measure a binary (closure phases, image, power-spectrum fringes) and say whether the data support it: measured, ambiguous, unresolved or inconsistent (header MEAS*, CP*, FR*)", NULL},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
         {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
@@ -423,37 +361,45 @@ free_ctx:
     return status;
 }
 
-static void binary_report(const binary_result *b, const cp_fit *cp, double ps,
-                          int json)
+/* The image fit, and the verdict of the reconstruction's own fits when
+ * there is one (v: status NONE when not). */
+static void binary_report(const binary_result *b, const pipeline_binary *v,
+                          double ps, int json)
 {
     if (json) {
         JsonBuilder *jb = json_builder_new();
         json_builder_begin_object(jb);
-        cli_json_num(jb, "sep_px", b->sep_px);
-        cli_json_num(jb, "sep_err_px", b->sep_err_px);
-        cli_json_num(jb, "pa_deg", b->pa_deg);
-        cli_json_num(jb, "pa_err_deg", b->pa_err_deg);
-        cli_json_num(jb, "dm_mag", b->dm_mag);
-        cli_json_num(jb, "dm_err_mag", b->dm_err_mag);
-        cli_json_num(jb, "flux_ratio", b->flux_ratio);
-        cli_json_num(jb, "err_inflation", b->err_inflation);
-        cli_json_num(jb, "sep_arcsec", b->sep_px * ps);
-        cli_json_num(jb, "sep_err_arcsec", b->sep_err_px * ps);
-        json_builder_set_member_name(jb, "pa_ambiguous");
-        json_builder_add_boolean_value(jb, b->pa_ambiguous);
-        cp_json(jb, cp, ps);
+        if (b) {
+            cli_json_num(jb, "sep_px", b->sep_px);
+            cli_json_num(jb, "sep_err_px", b->sep_err_px);
+            cli_json_num(jb, "pa_deg", b->pa_deg);
+            cli_json_num(jb, "pa_err_deg", b->pa_err_deg);
+            cli_json_num(jb, "dm_mag", b->dm_mag);
+            cli_json_num(jb, "dm_err_mag", b->dm_err_mag);
+            cli_json_num(jb, "flux_ratio", b->flux_ratio);
+            cli_json_num(jb, "err_inflation", b->err_inflation);
+            cli_json_num(jb, "sep_arcsec", b->sep_px * ps);
+            cli_json_num(jb, "sep_err_arcsec", b->sep_err_px * ps);
+            json_builder_set_member_name(jb, "pa_ambiguous");
+            json_builder_add_boolean_value(jb, b->pa_ambiguous);
+        }
+        binmeas_json(jb, v, ps);
         json_builder_end_object(jb);
         cli_print_json(jb);
         g_object_unref(jb);
-    } else {
-        printf("sep %.3f +- %.3f px", b->sep_px, b->sep_err_px);
+        return;
+    }
+    if (b) {
+        printf("image: sep %.3f +- %.3f px", b->sep_px, b->sep_err_px);
         if (isfinite(ps))
             printf(" (%.4f +- %.4f arcsec)", b->sep_px * ps, b->sep_err_px * ps);
         printf(", PA %.2f +- %.2f deg%s, dm %.3f +- %.3f mag\n", b->pa_deg,
                b->pa_err_deg, b->pa_ambiguous ? " (or +180: equal stars)" : "",
                b->dm_mag, b->dm_err_mag);
-        cp_print(cp, ps);
+    } else {
+        printf("image: no second component found\n");
     }
+    binmeas_print(v, ps);
 }
 
 /* A cube: reconstruct it with direct (in memory, nothing written) and
@@ -471,17 +417,12 @@ static int binary_of_cube(const char *path, int json)
         fprintf(stderr, "specklab binary: %s\n", e.msg);
         return 1;
     }
-    binary_result b;
-    int status = 0;
-    if (metrics_binary(r.image, r.width, r.height, &b) != SL_OK) {
-        fprintf(stderr, "specklab binary: no second component found in the "
-                "direct reconstruction of %s\n", path);
-        status = 1;
-    } else {
-        cp_fit cp;
-        cp_read(&r.meta, &cp);
-        binary_report(&b, &cp, r.plate_scale_arcsec, json);
-    }
+    const pipeline_binary *v = &r.binary;
+    binary_report(v->have_image ? &v->image : NULL, v, r.plate_scale_arcsec, json);
+    int status = v->status == PIPE_BIN_UNRESOLVED ? 1 : 0;
+    if (status)
+        fprintf(stderr, "specklab binary: no companion resolved in %s: %s\n",
+                path, v->why);
     pipeline_result_clear(&r);
     return status;
 }
@@ -534,14 +475,15 @@ int cmd_binary(int argc, char **argv)
         goto free_img;
     }
     binary_result b;
-    if (metrics_binary(img->data, img->width, img->height, &b) != SL_OK) {
+    pipeline_binary v; /* the reconstruction's own verdict, when recon --binary left one */
+    binmeas_from_header(&m, &v);
+    int found = metrics_binary(img->data, img->width, img->height, &b) == SL_OK;
+    if (!found && v.status == PIPE_BIN_NONE) {
         fprintf(stderr, "specklab binary: no second component found in %s\n", argv[1]);
         goto free_img;
     }
-    cp_fit cp; /* the bispectrum's own fit, when recon --binary left one */
-    cp_read(&m, &cp);
-    binary_report(&b, &cp, m.plate_scale_arcsec, json);
-    status = 0;
+    binary_report(found ? &b : NULL, &v, m.plate_scale_arcsec, json);
+    status = v.status == PIPE_BIN_UNRESOLVED || (!found && v.source == PIPE_BIN_SRC_NONE);
 free_img:
     seq_free(img);
 free_ctx:

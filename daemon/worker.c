@@ -12,7 +12,6 @@
 
 #include "catlock.h"
 #include "cubefile.h"
-#include "metrics.h"
 #include "pipeline.h"
 #include "preview.h"
 #include "wisdom.h"
@@ -137,10 +136,10 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
      * speckle cloud keeps it out (a dm 2 companion at 1e4 photons, 2 e-:
      * lost by TSM on the whole 200^2 frame, found on the crop). */
     po.skips = w->cfg->skips;
-    /* The binary is also fitted to the bispectrum's closure phases
-     * (recon/closure.h; direct's 2-D or TSM's 1-D): 8 of 8 seeds within
-     * 0.1 px / 0.5 deg / 0.1 mag at 5 lambda/D, dm 2 with either, where
-     * the image fits met 3 of 8 (direct) and 0 of 4 (TSM-Fourier). */
+    /* The binary is measured by every fit and judged (pipeline.h,
+     * pipeline_binary): the closure phases' fit met 0.1 px / 0.5 deg /
+     * 0.1 mag on 8 of 8 seeds at 5 lambda/D, dm 2, where the image fits
+     * met 3 of 8 (direct) and 0 of 4 (TSM-Fourier). */
     po.closure_binary = 1;
     catalog_recon_init(rec);
     rec->started_ms = catalog_now_ms();
@@ -153,19 +152,24 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
         (rc = preview_write_png(o->png, res.image, res.width, res.height, PREVIEW_ASINH, e)) !=
             SL_OK)
         goto clear_result;
-    int found = metrics_binary(res.image, res.width, res.height, &br) == SL_OK;
-    const char *binary_src = found ? "image" : "none", *cps = NULL;
-    binary_result cp = br; /* read whole, so a missing key leaves br alone */
-    if (cube_meta_get_str(&res.meta, "CPSTAT", &cps) == SL_OK && !strcmp(cps, "ok") &&
-        cube_meta_get_num(&res.meta, "CPSEP", &cp.sep_px) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPSEPE", &cp.sep_err_px) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPPA", &cp.pa_deg) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPPAE", &cp.pa_err_deg) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPDM", &cp.dm_mag) == SL_OK &&
-        cube_meta_get_num(&res.meta, "CPDME", &cp.dm_err_mag) == SL_OK) {
-        br = cp;
-        found = 1;
-        binary_src = "closure-phase";
+    /* The verdict (recon/pipeline_binary.c): the closure-phase fit, else
+     * the image fit, else the power spectrum's fringes; catalogued as a
+     * binary only when measured, or ambiguous (PA modulo 180 deg).  An
+     * unresolved or inconsistent pair keeps no numbers, and says why. */
+    const pipeline_binary *v = &res.binary;
+    int found = v->source != PIPE_BIN_SRC_NONE &&
+                (v->status == PIPE_BIN_MEASURED || v->status == PIPE_BIN_AMBIGUOUS);
+    const char *binary_src = !found ? "none" : v->source == PIPE_BIN_SRC_CLOSURE
+                             ? "closure-phase" : pipeline_binary_source_name(v->source);
+    memset(&br, 0, sizeof br);
+    if (found) {
+        const binary_result *fit = v->source == PIPE_BIN_SRC_CLOSURE ? &v->closure
+                                 : v->source == PIPE_BIN_SRC_IMAGE ? &v->image : NULL;
+        if (fit)
+            br = *fit;
+        br.sep_px = v->sep_px, br.sep_err_px = v->sep_err_px;
+        br.pa_deg = v->pa_deg, br.pa_err_deg = v->pa_err_deg;
+        br.dm_mag = v->dm_mag, br.dm_err_mag = v->dm_err_mag;
     }
     double scale = isfinite(res.plate_scale_arcsec) ? res.plate_scale_arcsec
                                                     : w->cfg->plate_scale_arcsec;
@@ -191,6 +195,9 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     proto_add_str(b, "skips", skips);
     proto_add_str(b, "fftw", po.fftw_measure ? "measure" : "estimate");
     proto_add_str(b, "binary", binary_src); /* where sep/PA/dm came from */
+    proto_add_str(b, "binary_status", pipeline_binary_status_name(v->status));
+    if (v->why[0])
+        proto_add_str(b, "binary_why", v->why);
     json_builder_end_object(b);
     o->params = json_text(b);
     b = json_builder_new();

@@ -195,7 +195,7 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
                  (o->window == POWSPEC_WIN_TUKEY && o->tukey_alpha >= 0 &&
                   o->tukey_alpha <= 1);
     if (o->weight < PHASOR_WEIGHT_MOD || o->weight > PHASOR_WEIGHT_UNIT ||
-        !(o->adu_per_photon >= 0) || !(o->read_noise_adu >= 0) || o->refine_iters < 0 ||
+        !(o->adu_per_photon >= 0) || !(o->read_noise_adu >= 0) || o->refine_iters < -1 ||
         !(o->taper_frac >= 0 && o->taper_frac <= 1) || !win_ok)
         return sl_seterr(err, SL_EINVAL, "bispec: bad option (weight %d, "
                          "gain %g, read noise %g, refine %d, taper %g, window %d)",

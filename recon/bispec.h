@@ -84,7 +84,9 @@ typedef struct bispec_opts {
     int acc_float;                /* complex float accumulators (half memory) */
     int nthreads;                 /* threads for the triple loop, >= 1 */
     int measure;                  /* FFTW_MEASURE (1, default) or ESTIMATE */
-    int refine_iters;             /* least-squares passes after recursion */
+    int refine_iters;             /* least-squares passes after recursion;
+                                   * -1: as the recursion's misfit asks
+                                   * (phasor_solve) */
     double taper_frac;            /* cosine roll-off over this outer fraction
                                      of the cut-off radius (0 = hard edge) */
 } bispec_opts;
@@ -114,6 +116,9 @@ size_t bispec_memory_bytes(const bispec *b);
 int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
                   double *bim, double *weight);
 
+/* The phase recursion's weighted closure misfit (phasor_solve), NAN
+ * before the phases are recovered. */
+double bispec_misfit(const bispec *b);
 /* Recover the phases (recursion + opts.refine_iters LS passes; cached
  * until the next bispec_add).  phase (w*h, FFT order, radians, odd:
  * phi(-u) = -phi(u)) and known (w*h, 1 where recovered) may be NULL.

@@ -43,6 +43,7 @@ struct bispec {
     double *phi, *work;
     unsigned char *known;
     int phased;
+    double misfit;         /* the recursion's (phasor_solve) */
     fftw_complex *cin;       /* image: h*wc half spectrum */
     double *cout;            /* image: w*h */
     fftw_plan iplan;

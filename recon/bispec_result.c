@@ -47,6 +47,8 @@ int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
     return SL_OK;
 }
 
+double bispec_misfit(const bispec *b) { return b->phased ? b->misfit : NAN; }
+
 int bispec_phase(bispec *b, double *phase, unsigned char *known)
 {
     if (!b)
@@ -58,7 +60,7 @@ int bispec_phase(bispec *b, double *phase, unsigned char *known)
         phasor_graph g;
         graph_view(b, &g);
         int rc = phasor_solve(&g, b->o.refine_iters, b->work, b->phi,
-                              b->known);
+                              b->known, &b->misfit);
         if (rc != SL_OK)
             return sl_seterr(&b->err, rc, "bispec_phase: solver failed");
         b->phased = 1;

@@ -292,6 +292,12 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
     double wsum = 0;
     for (long i = 0; i < n; i++)
         wsum += t[i].wt;
+    /* the same binary mirrored (-d): what the closure phases' sign says */
+    double flip[NP] = {-best[0], -best[1], best[2]};
+    double fflip = cost(&c, flip, NULL, NULL);
+    /* and no companion at all (r -> 0: every model closure phase 0) */
+    double none[NP] = {best[0], best[1], log(1e-12)};
+    double fnone = cost(&c, none, NULL, NULL);
     double Ci[NP * NP];
     if (!inv3(Abest, Ci)) {
         rc = sl_seterr(err, SL_EDATA, "closure fit: singular normal "
@@ -328,7 +334,9 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
         Ci[k] += Cj[k];
     fill_result(init, best, Ci, infl, nused, out);
     if (info)
-        *info = (closure_fit_info){n, nused, sqrt(fbest / wsum), steps};
+        *info = (closure_fit_info){n, nused, sqrt(fbest / wsum), steps,
+                                   (fflip - fbest) / (s2 * infl),
+                                   (fnone - fbest) / (s2 * infl)};
 free_used:
     free(used);
     return rc;

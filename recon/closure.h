@@ -63,6 +63,14 @@ typedef struct closure_fit_info {
     int nfreq;               /* distinct frequencies among them */
     double rms_rad;          /* |B|-weighted rms closure residual */
     int iterations;          /* LM steps of the winning start */
+    double sign_chi2;        /* how much worse the mirrored binary (-d,
+                              * same r) fits, in chi^2 units of
+                              * independent frequencies (residual
+                              * variance x triples per frequency): below
+                              * ~25 the data hardly tell d from -d, the PA
+                              * is known modulo 180 deg */
+    double detect_chi2;      /* how much worse no companion fits, in the
+                              * same units: the companion's significance */
 } closure_fit_info;
 
 /* Fit the binary to g's triples (frequencies fp, fq of g's nfreq, w x h

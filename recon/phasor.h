@@ -70,13 +70,25 @@ size_t phasor_work_doubles(int nfreq);
 /* Recover phi[0..nfreq) (radians, in (-pi, pi]).  Seeds and DC are 0.
  * Recursion: for j in order, phi_j = arg sum_t w_t exp(i(phi(l1) +
  * phi(l2) - beta_t)); a frequency none of whose triples has known legs
- * stays unknown (known[j] = 0, phi 0).  Then `iters` rounds of weighted
- * least squares in phasor form (Jacobi): every triple proposes a phasor
- * for each of its three legs from the other two, phi_j = arg of the sum
- * of the proposals plus the current phasor (damping, so the iteration
- * cannot oscillate), seeds held.  Cost: O(triples) per pass. */
+ * stays unknown (known[j] = 0, phi 0).  *misfit_out (may be NULL) gets
+ * its weighted closure misfit, sum w (1 - cos(residual)) / sum w: 0.002
+ * to 0.01 on well-connected data, 0.04 where the recursion went astray
+ * (a piston-phase mask's disjoint splodges).  Then up to `iters` rounds
+ * (iters < 0: PHASOR_AUTO_ITERS when the misfit exceeds
+ * PHASOR_AUTO_MISFIT, else none) of weighted least squares in phasor
+ * form (Jacobi) over each target's triples of weight >= PHASOR_REFINE_REL
+ * x its largest (listed once, 24 bytes each, allocated here): every
+ * triple proposes a phasor for each of its three legs from the other
+ * two, phi_j = arg of the sum of the proposals, seeds held; a round that
+ * does not lower the weighted closure misfit is undone and ends it, as
+ * does one that lowers it by less than 1e-4.  Cost: the recursion one
+ * pass over the triples; refining two more to list them, then
+ * O(strong triples) per round (~0.07 s per round at 200^2, R2 = 28). */
+#define PHASOR_REFINE_REL 0.01
+#define PHASOR_AUTO_MISFIT 0.05
+#define PHASOR_AUTO_ITERS 40
 int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,
-                 unsigned char *known);
+                 unsigned char *known, double *misfit_out);
 
 /* Write phi/known of the half-plane frequencies u_j = (fp[j], fq[j]) to
  * full w*h planes in FFT order, mirrored: phi(-u) = -phi(u).  Elsewhere

@@ -27,6 +27,7 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->recentre = 1;
     o->fftw_measure = 1;
     o->skips = -1;
+    o->refine_iters = -1;
 }
 
 int pipeline_method_parse(const char *name, int *method)
@@ -68,7 +69,7 @@ static int tsm_add_fn(void *h, const float *f) { return tsm_add(h, f); }
  * mean flux of this very pass. */
 static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
                             double photons, double *ps, double *g_out,
-                            sl_err *err)
+                            double *bias_out, sl_err *err)
 {
     powspec_opts po;
     powspec_opts_default(&po);
@@ -92,6 +93,8 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
         sl_seterr(err, rc, "%s", powspec_errmsg(p));
     if (g_out)
         *g_out = g;
+    if (bias_out)
+        *bias_out = powspec_bias(p);
     powspec_free(p);
     return rc;
 }
@@ -125,45 +128,9 @@ static int target_mtf(const char *path, int w, int h, double *mtf,
     return SL_OK;
 }
 
-/* The binary fitted to the closure phases (closure.h) of direct's
- * bispectrum b or of TSM's 1-D bispectra t, from binary_measure on the
- * image, into CP* keywords.  Failing to find a binary is a result, not an
- * error: CPSTAT says why. */
-static void closure_keys(bispec *b, tsm *t, const float *img, int w, int h,
-                         cube_meta *m)
-{
-    binary_result init, cp;
-    closure_fit_info info;
-    sl_err e = {0};
-    int rc = binary_measure(img, w, h, &init, &e);
-    const char *why = e.msg;
-    if (rc == SL_OK && (rc = b ? bispec_binary(b, &init, &cp, &info)
-                               : tsm_binary(t, &init, &cp, &info)) != SL_OK)
-        why = b ? bispec_errmsg(b) : tsm_errmsg(t);
-    if (rc != SL_OK) {
-        char msg[69]; /* a FITS string value holds 68 characters */
-        size_t k = strlen(why) < 68 ? strlen(why) : 68;
-        memcpy(msg, why, k);
-        msg[k] = 0;
-        cube_meta_set_str(m, "CPSTAT", msg, "closure-phase binary fit failed");
-        return;
-    }
-    cube_meta_set_str(m, "CPSTAT", "ok", "closure-phase binary fit (closure.h)");
-    cube_meta_set_num(m, "CPSEP", cp.sep_px, "[px] binary separation, closure phases");
-    cube_meta_set_num(m, "CPSEPE", cp.sep_err_px, "[px] its 1-sigma error");
-    cube_meta_set_num(m, "CPPA", cp.pa_deg, "[deg] PA from +y (N) to -x (E)");
-    cube_meta_set_num(m, "CPPAE", cp.pa_err_deg, "[deg] its 1-sigma error");
-    cube_meta_set_num(m, "CPDM", cp.dm_mag, "[mag] magnitude difference");
-    cube_meta_set_num(m, "CPDME", cp.dm_err_mag, "[mag] its 1-sigma error");
-    cube_meta_set_num(m, "CPAMBIG", cp.pa_ambiguous, "1 = r within 2 sigma of 1");
-    cube_meta_set_num(m, "CPNTRI", (double)info.ntriples, "closure triangles fitted");
-    cube_meta_set_num(m, "CPNFREQ", info.nfreq, "distinct frequencies in them");
-    cube_meta_set_num(m, "CPRMS", info.rms_rad, "[rad] weighted rms closure residual");
-}
-
 static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
                       double photons, double g, float *img, cube_meta *m,
-                      sl_err *err)
+                      pipeline_binary *bin, sl_err *err)
 {
     size_t n = (size_t)s->w * s->h;
     double *ps = malloc(n * sizeof *ps), *ps_ref = NULL, *mod = NULL;
@@ -174,7 +141,8 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         sl_seterr(err, rc, "out of memory");
         goto free_all;
     }
-    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, err)) != SL_OK)
+    double noise = 0;
+    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, &noise, err)) != SL_OK)
         goto free_all;
     /* Support at 3 sigma, not 5: the threshold acts on the object's power,
      * so at low photon counts it keeps a binary's fringe maxima and drops
@@ -216,7 +184,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK)
             goto free_all;
         rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
-                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, err);
+                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, err);
         if (rc != SL_OK)
             goto free_all;
         powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);
@@ -231,11 +199,16 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         sl_seterr(err, rc, "%s", bispec_errmsg(b));
         goto free_all;
     }
-    if (o->closure_binary)
-        closure_keys(b, NULL, img, s->w, s->h, m);
+    if (o->closure_binary) {
+        pipe_binary_in bi = {.b = b, .ps2d = ps, .rcut_px = rcut, .noise = noise,
+                             .nframes = bispec_nframes(b)};
+        pipe_binary_measure(&bi, img, s->w, s->h, bin);
+        pipe_binary_describe(bin, m);
+    }
     cube_meta_set_num(m, "RECR2", bo.r2_px, "[px] bispectrum |u2| radius");
     cube_meta_set_num(m, "RECRCUT", rcut, "[px] measured Fourier cut-off");
     cube_meta_set_num(m, "RECNTRI", (double)bispec_ntriples(b), "closure triangles stored");
+    cube_meta_set_num(m, "RECMISF", bispec_misfit(b), "phase recursion's closure misfit");
     cube_meta_set_num(m, "RECGAIN", g, "[adu/photon] photon-bias gain, 0 = floor");
 free_all:
     bispec_free(b);
@@ -284,8 +257,30 @@ static int tsm_target_power(const char *path, const tsm_opts *to, int w,
     return rc;
 }
 
+/* The binary measured on TSM's result: its polar power spectra carry the
+ * fringes (pipeline_binary.c). */
+static int tsm_binary_keys(tsm *t, const float *img, int w, int h,
+                           pipeline_binary *bin, cube_meta *m, sl_err *err)
+{
+    size_t np = (size_t)tsm_nangles(t) * tsm_nfreq(t);
+    double *ps = malloc(np * sizeof *ps), level = 0;
+    if (!ps)
+        return sl_seterr(err, SL_ENOMEM, "out of memory");
+    int rc = tsm_power(t, ps);
+    tsm_noise_level(t, &level);
+    pipe_binary_in bi = {.t = t, .ps_polar = rc == SL_OK ? ps : NULL,
+                         .nang = tsm_nangles(t), .nf = tsm_nfreq(t),
+                         .nproj = tsm_nproj(t), .noise = level,
+                         .nframes = tsm_nframes(t)};
+    pipe_binary_measure(&bi, img, w, h, bin);
+    pipe_binary_describe(bin, m);
+    free(ps);
+    return SL_OK;
+}
+
 static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
-                   double photons, float *img, cube_meta *m, sl_err *err)
+                   double photons, float *img, cube_meta *m,
+                   pipeline_binary *bin, sl_err *err)
 {
     tsm_opts to;
     tsm_opts_default(&to);
@@ -340,8 +335,8 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         sl_seterr(err, rc, "%s", tsm_errmsg(t));
         goto free_all;
     }
-    if (o->closure_binary)
-        closure_keys(NULL, t, img, s->w, s->h, m);
+    if (o->closure_binary && (rc = tsm_binary_keys(t, img, s->w, s->h, bin, m, err)) != SL_OK)
+        goto free_all;
     cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
     cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
                       "[cyc/px] TSM cut-off");
@@ -430,8 +425,8 @@ int pipeline_run(const char *const *paths, int npaths,
     cube_meta_set_str(&out->meta, "RECPHSRC", phsrc_names[phsrc],
                       "RECPHOT from: option, SIMPHOT, or GAIN and the flux");
     rc = eo.method == PIPE_DIRECT
-             ? run_direct(&s, refp, &eo, photons, g, out->image, &out->meta, err)
-             : run_tsm(&s, refp, &eo, photons, out->image, &out->meta, err);
+             ? run_direct(&s, refp, &eo, photons, g, out->image, &out->meta, &out->binary, err)
+             : run_tsm(&s, refp, &eo, photons, out->image, &out->meta, &out->binary, err);
     if (rc == SL_OK && s.scale != 1.0) {
         for (size_t i = 0, n = (size_t)s.w * s.h; i < n; i++)
             out->image[i] = (float)(out->image[i] / s.scale);

@@ -42,7 +42,10 @@
 #ifndef SL_PIPELINE_H
 #define SL_PIPELINE_H
 
+#include "binary.h"
+#include "closure.h"
 #include "cube.h"
+#include "fringe.h"
 #include "status.h"
 
 enum pipeline_method {
@@ -84,7 +87,9 @@ typedef struct pipeline_opts {
     double wiener;            /* reference regulariser; 0 = default */
     int nthreads;             /* threads: direct bispectrum, 0 = 2; TSM
                                * (tsm.h), 0 = online CPUs, at most 4 */
-    int refine_iters;         /* least-squares passes after the recursion */
+    int refine_iters;         /* direct: least-squares passes after the
+                               * recursion; -1 (default): as its misfit
+                               * asks (phasor.h) */
     int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
     int skips;                /* PIPE_SKIP_* bits; -1 (default): all of them
                                * for PIPE_AUTO, none for the other methods */
@@ -104,6 +109,33 @@ typedef struct pipeline_opts {
                                * CPAMBIG, CPNTRI, CPNFREQ, CPRMS, CPSTAT */
 } pipeline_opts;
 
+/* The binary a reconstruction measured (closure_binary), and what the
+ * data support of it (pipeline_binary.c): */
+enum pipeline_binary_status {
+    PIPE_BIN_NONE = 0,      /* not asked for */
+    PIPE_BIN_MEASURED,      /* sep, PA and dm with their errors */
+    PIPE_BIN_AMBIGUOUS,     /* the PA is known modulo 180 deg */
+    PIPE_BIN_UNRESOLVED,    /* no companion above the noise */
+    PIPE_BIN_INCONSISTENT   /* the fits disagree beyond their errors */
+};
+enum pipeline_binary_source {
+    PIPE_BIN_SRC_NONE = 0, PIPE_BIN_SRC_CLOSURE, PIPE_BIN_SRC_IMAGE,
+    PIPE_BIN_SRC_FRINGE
+};
+
+typedef struct pipeline_binary {
+    int status, source;       /* enum pipeline_binary_status, _source */
+    double sep_px, sep_err_px, pa_deg, pa_err_deg, dm_mag, dm_err_mag;
+    char why[96];             /* what keeps it from "measured", or "" */
+    int have_image, have_closure, have_fringe, fringe_ran;
+    binary_result image, closure;     /* binary.h, closure.h */
+    closure_fit_info closure_info;
+    fringe_result fringe;             /* fringe.h */
+} pipeline_binary;
+
+const char *pipeline_binary_status_name(int status);
+const char *pipeline_binary_source_name(int source);
+
 typedef struct pipeline_result {
     int width, height;        /* the image: same size as a frame */
     int nframes;              /* frames used */
@@ -111,6 +143,7 @@ typedef struct pipeline_result {
     double elapsed_s;         /* wall time of pipeline_run */
     double plate_scale_arcsec;/* from the input header; NAN when unknown */
     cube_meta meta;           /* header for the image (input's + ours) */
+    pipeline_binary binary;   /* with closure_binary; status NONE else */
 } pipeline_result;
 
 void pipeline_opts_defaults(pipeline_opts *o);

@@ -5,11 +5,13 @@
 #define SL_PIPELINE_INT_H
 
 #include "autoconf.h"
+#include "bispec.h"
 #include "cube.h"
 #include "pipeline.h"
 #include "prep.h"
 #include "probe.h"
 #include "rawstats.h"
+#include "tsm.h"
 
 typedef int (*add_fn)(void *h, const float *frame);
 
@@ -91,5 +93,25 @@ void skip_describe(const stream *s, const pipeline_opts *o, int skips,
 /* A crop-sized image placed, centred, in a new frame-sized one: *img is
  * replaced (and freed). */
 int skip_place(const stream *s, float **img, sl_err *err);
+
+/* What the binary measurement sees (pipeline_binary.c): the estimator's
+ * spectra (direct: b and the 2-D power spectrum; TSM: t and its polar
+ * power spectra), their white-noise level and frame count. */
+typedef struct pipe_binary_in {
+    bispec *b;
+    tsm *t;
+    const double *ps2d;      /* w x h, FFT order, bias subtracted */
+    double rcut_px;
+    const double *ps_polar;  /* tsm_power's layout */
+    int nang, nf, nproj;
+    double noise, nframes;
+} pipe_binary_in;
+
+/* Measure the binary on img (w x h, the estimator's own size) with every
+ * fit and judge what the data support (pipeline.h, pipeline_binary). */
+void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
+                         int h, pipeline_binary *r);
+/* MEAS*, FR* and CP* keywords. */
+void pipe_binary_describe(const pipeline_binary *r, cube_meta *m);
 
 #endif

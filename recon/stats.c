@@ -11,6 +11,7 @@
  */
 #include "stats.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -50,4 +51,47 @@ float stats_median_inplace(float *v, size_t n)
     float f;
     memcpy(&f, &u, sizeof f);
     return f;
+}
+
+int stats_solve(int n, const double *A, const double *b, double *x)
+{
+    double M[STATS_SOLVE_MAX][STATS_SOLVE_MAX + 1];
+    if (n < 1 || n > STATS_SOLVE_MAX)
+        return 0;
+    double scale = 0;
+    for (int r = 0; r < n; r++) {
+        for (int c = 0; c < n; c++) {
+            M[r][c] = A[r * n + c];
+            scale = fmax(scale, fabs(M[r][c]));
+        }
+        M[r][n] = b[r];
+    }
+    for (int k = 0; k < n; k++) {
+        int piv = k;
+        for (int r = k + 1; r < n; r++)
+            if (fabs(M[r][k]) > fabs(M[piv][k]))
+                piv = r;
+        if (!(fabs(M[piv][k]) > 1e-14 * scale))
+            return 0;
+        if (piv != k)
+            for (int c = k; c <= n; c++) {
+                double t = M[k][c];
+                M[k][c] = M[piv][c];
+                M[piv][c] = t;
+            }
+        for (int r = k + 1; r < n; r++) {
+            double m = M[r][k] / M[k][k];
+            for (int c = k; c <= n; c++)
+                M[r][c] -= m * M[k][c];
+        }
+    }
+    for (int r = n - 1; r >= 0; r--) {
+        double s = M[r][n];
+        for (int c = r + 1; c < n; c++)
+            s -= M[r][c] * x[c];
+        x[r] = s / M[r][r];
+        if (!isfinite(x[r]))
+            return 0;
+    }
+    return 1;
 }

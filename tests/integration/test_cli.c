@@ -422,9 +422,10 @@ TEST(real_daemon_failed_run_and_two_clients)
 }
 
 /* `specklab binary` on a cube reconstructs it (direct, in memory) and
- * reports the image fit and the closure-phase fit; `recon -m direct
- * --binary` leaves the same closure fit in the image's header, which
- * `binary` on that image reports again.  Truth: the simulator's binary
+ * reports the image fit, the closure-phase fit and the verdict (measured,
+ * from the closure phases); `recon -m direct --binary` leaves the same
+ * fit and verdict in the image's header, which `binary` on that image
+ * reports again.  Truth: the simulator's binary
  * (0.6", PA 140 deg, dm 1.5; the bounds are loose for 40 frames of 96^2). */
 TEST(binary_of_a_cube_and_closure_keywords)
 {
@@ -453,7 +454,11 @@ TEST(binary_of_a_cube_and_closure_keywords)
         cb = dcmd_obj(json_node_get_object(b), "closure_phase");
     double sep = ca ? dcmd_num(ca, "sep_arcsec") : NAN, pa = ca ? dcmd_num(ca, "pa_deg") : NAN;
     double dm = ca ? dcmd_num(ca, "dm_mag") : NAN;
-    int ok = ca && !g_strcmp0(dcmd_str(ca, "status"), "ok");
+    JsonObject *va = a && JSON_NODE_HOLDS_OBJECT(a) ? dcmd_obj(json_node_get_object(a), "binary") : NULL;
+    JsonObject *vb = b && JSON_NODE_HOLDS_OBJECT(b) ? dcmd_obj(json_node_get_object(b), "binary") : NULL;
+    int ok = ca && va && vb && !g_strcmp0(dcmd_str(va, "status"), "measured") &&
+             !g_strcmp0(dcmd_str(va, "source"), "closure") &&
+             !g_strcmp0(dcmd_str(vb, "status"), "measured");
     int same = ca && cb && fabs(dcmd_num(cb, "sep_px") - dcmd_num(ca, "sep_px")) < 1e-6 &&
                fabs(dcmd_num(cb, "dm_mag") - dcmd_num(ca, "dm_mag")) < 1e-6;
     char msg[700];

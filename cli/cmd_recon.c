@@ -16,7 +16,7 @@
 #include "tsm.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix;
+    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
     int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
@@ -189,6 +189,18 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
         return 2;
     }
     o.refine_iters = a->refine;
+    if (a->phase_weights) {
+        static const char *names[] = {"mod", "snr", "unit"};
+        o.phase_weight = -2;
+        for (int i = 0; i < 3; i++)
+            if (!strcmp(a->phase_weights, names[i]))
+                o.phase_weight = i;
+        if (o.phase_weight < 0) {
+            fprintf(stderr, "specklab recon: --phase-weights '%s': want mod, "
+                            "snr or unit\n", a->phase_weights);
+            return 2;
+        }
+    }
     o.closure_binary = a->binary;
     pipeline_result r;
     sl_err e = {0};
@@ -247,6 +259,7 @@ int cmd_recon(int argc, char **argv)
         {"no-detect", 0, 0, G_OPTION_ARG_NONE, &a.no_detect, "do not learn the detector from the raw frames (bad pixels, saturation, sky region, recentring)", NULL},
         {"no-recentre", 0, 0, G_OPTION_ARG_NONE, &a.no_recentre, "do not recentre frames on the speckle cloud", NULL},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
+        {"phase-weights", 0, 0, G_OPTION_ARG_STRING, &a.phase_weights, "direct: weights of the phase recursion mod|snr|unit (default: automatic)", "W"},
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default -1: up to 40 when the phase recursion's closure misfit says it went astray; 0: none)", "N"},
         {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "also measure a binary (closure phases, image, power-spectrum fringes) and say whether the data support it: measured, ambiguous, unresolved or inconsistent (header MEAS*, CP*, FR*)", NULL},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
@@ -282,7 +295,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips); g_free(a.badpix);
+    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
     return status;
 }
 

@@ -29,6 +29,7 @@ void bispec_opts_default(bispec_opts *o)
     o->window = POWSPEC_WIN_NONE;
     o->tukey_alpha = 0.25;
     o->weight = PHASOR_WEIGHT_MOD;
+    o->refine_weight = PHASOR_WEIGHT_MOD;
     o->nthreads = 1;
     o->measure = 1;
     o->taper_frac = 0.2;
@@ -195,6 +196,7 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
                  (o->window == POWSPEC_WIN_TUKEY && o->tukey_alpha >= 0 &&
                   o->tukey_alpha <= 1);
     if (o->weight < PHASOR_WEIGHT_MOD || o->weight > PHASOR_WEIGHT_UNIT ||
+        o->refine_weight < PHASOR_WEIGHT_MOD || o->refine_weight > PHASOR_WEIGHT_UNIT ||
         !(o->adu_per_photon >= 0) || !(o->read_noise_adu >= 0) || o->refine_iters < -1 ||
         !(o->taper_frac >= 0 && o->taper_frac <= 1) || !win_ok)
         return sl_seterr(err, SL_EINVAL, "bispec: bad option (weight %d, "
@@ -248,7 +250,7 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
     split_ranges(b);
 
     size_t nt = (size_t)b->nt, asz = o->acc_float ? sizeof(float) : sizeof(double);
-    int snr = o->weight == PHASOR_WEIGHT_SNR;
+    int snr = o->weight == PHASOR_WEIGHT_SNR || o->refine_weight == PHASOR_WEIGHT_SNR;
     void *acc = balloc(b, 2 * nt * asz), *acc2 = snr ? balloc(b, nt * asz) : NULL;
     if (o->acc_float) {
         b->accf = acc;

@@ -81,6 +81,8 @@ typedef struct bispec_opts {
      * bias; it adds nothing to the mean bispectrum itself. */
     double read_noise_adu;
     int weight;                   /* PHASOR_WEIGHT_*; SNR stores sum |b|^2 */
+    int refine_weight;            /* PHASOR_WEIGHT_* of the least-squares
+                                   * refinement; SNR stores sum |b|^2 */
     int acc_float;                /* complex float accumulators (half memory) */
     int nthreads;                 /* threads for the triple loop, >= 1 */
     int measure;                  /* FFTW_MEASURE (1, default) or ESTIMATE */

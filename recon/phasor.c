@@ -179,7 +179,9 @@ static void refine(const phasor_graph *g, int iters, double *E, double *Z,
 {
     int n = g->nfreq;
     int64_t ns = 0;
-    strong *s = strong_triples(g, known, &ns);
+    phasor_graph gr = *g;
+    gr.weight = g->refine_weight;
+    strong *s = strong_triples(&gr, known, &ns);
     double *keep = malloc(sizeof *keep * 4 * (size_t)n);
     if (!s || !keep)
         goto free_all;
@@ -235,32 +237,35 @@ int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,
     known[0] = 1;
 
     /* The recursion: legs always have lower rank than the target.  Its
-     * misfit comes free: with E_j = Z/|Z|, sum_t (w_t - Re(conj(E_j)
-     * p_t)) = sum_t w_t - |Z|. */
+     * misfit comes free, weighted by |B| whatever the recursion's weights
+     * (so that one threshold serves them all): with zm the |B|-weighted
+     * sum of the unit proposals, sum_t |B_t| (1 - cos(res_t)) = sum_t
+     * |B_t| - Re(conj(E_j) zm). */
     double wsum = 0, miss = 0;
     for (int j = 1; j < n; j++) {
         if (g->seed[j]) {
             known[j] = 1;
             continue;
         }
-        double zr = 0, zi = 0, ws = 0;
+        double zr = 0, zi = 0, mr = 0, mi = 0, ms = 0;
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
             double br, bi, w, pr, pi;
             phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
-            if (!known[l1 % n] || !known[l2 % n])
+            if (!known[l1 % n] || !known[l2 % n] || !(w > 0))
                 continue;
             propose(E, l1, l2, br, bi, w, &pr, &pi);
             zr += pr;
             zi += pi;
-            ws += pr != 0 || pi != 0 ? w : 0;
+            double mod = sqrt(br * br + bi * bi);
+            mr += pr * mod / w, mi += pi * mod / w, ms += mod;
         }
         double m = hypot(zr, zi);
         if (m > 0) {
             set_phasor(E, n, j, zr / m, zi / m);
             known[j] = 1;
-            wsum += ws;
-            miss += ws - m;
+            wsum += ms;
+            miss += ms - (mr * zr + mi * zi) / m;
         }
     }
     double misfit_rel = wsum > 0 ? miss / wsum : 0;

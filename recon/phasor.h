@@ -56,7 +56,12 @@ typedef struct phasor_graph {
      * bispec_opts.read_noise_adu). */
     const double *xsum;
     double xscale, bconst;
-    int weight;                /* PHASOR_WEIGHT_* */
+    int weight;                /* PHASOR_WEIGHT_* of the recursion */
+    int refine_weight;         /* PHASOR_WEIGHT_* of the refinement: SNR
+                                * weights are the inverse phase errors a
+                                * least-squares fit wants (six-star at 1000
+                                * photons: c 0.825 with |B|, 0.886), while
+                                * the greedy recursion does best with |B| */
 } phasor_graph;
 
 /* The legs, the bias-corrected mean bispectrum and the weight of triple
@@ -71,9 +76,10 @@ size_t phasor_work_doubles(int nfreq);
  * Recursion: for j in order, phi_j = arg sum_t w_t exp(i(phi(l1) +
  * phi(l2) - beta_t)); a frequency none of whose triples has known legs
  * stays unknown (known[j] = 0, phi 0).  *misfit_out (may be NULL) gets
- * its weighted closure misfit, sum w (1 - cos(residual)) / sum w: 0.002
- * to 0.01 on well-connected data, 0.04 where the recursion went astray
- * (a piston-phase mask's disjoint splodges).  Then up to `iters` rounds
+ * its closure misfit weighted by |B| (whatever the weights), sum |B| (1 -
+ * cos(residual)) / sum |B|: 0.002 to 0.05 on the bench's data, 0.07
+ * where the recursion went astray (a piston-phase mask's disjoint
+ * splodges).  Then up to `iters` rounds
  * (iters < 0: PHASOR_AUTO_ITERS when the misfit exceeds
  * PHASOR_AUTO_MISFIT, else none) of weighted least squares in phasor
  * form (Jacobi) over each target's triples of weight >= PHASOR_REFINE_REL

@@ -28,6 +28,7 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->fftw_measure = 1;
     o->skips = -1;
     o->refine_iters = -1;
+    o->phase_weight = -1;
 }
 
 int pipeline_method_parse(const char *name, int *method)
@@ -128,6 +129,21 @@ static int target_mtf(const char *path, int w, int h, double *mtf,
     return SL_OK;
 }
 
+/* sqrt(mean power over the support, DC out / white-noise power per
+ * frequency), as the probe measures it; 1e6 without noise. */
+static double support_snr(const double *ps, const unsigned char *support,
+                          size_t n, double noise)
+{
+    double sum = 0;
+    size_t k = 0;
+    for (size_t i = 1; i < n; i++)
+        if (support[i])
+            sum += ps[i], k++;
+    if (!(noise > 1e-12 * ps[0]) || !k)
+        return 1e6;
+    return sqrt(fmax(sum / k, 0) / noise);
+}
+
 static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
                       double photons, double g, float *img, cube_meta *m,
                       pipeline_binary *bin, sl_err *err)
@@ -169,7 +185,17 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     bo.read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
     bo.nthreads = o->nthreads > 0 ? o->nthreads : 2;
     bo.measure = o->fftw_measure;
-    bo.refine_iters = o->refine_iters;
+    /* Noisy data (the power in the support within 30^2 of the white
+     * noise's: 1000 photons give ~2) get the least-squares refinement with
+     * SNR weights, |B| over its standard error across the frames (50 %
+     * more accumulator memory): six-star at 1000 photons c 0.793 -> 0.886,
+     * a binary unchanged.  Clean data refine only when the recursion's
+     * misfit asks (phasor.h). */
+    int noisy = support_snr(ps, support, n, noise) < 30;
+    bo.refine_iters = o->refine_iters >= 0 ? o->refine_iters : noisy ? PHASOR_AUTO_ITERS : -1;
+    bo.weight = o->phase_weight >= 0 ? o->phase_weight : PHASOR_WEIGHT_MOD;
+    bo.refine_weight = o->phase_weight >= 0 ? o->phase_weight
+                                            : noisy ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
     if (!(b = bispec_new(s->w, s->h, &bo, err))) {
         rc = err ? err->code : SL_ENOMEM;
         goto free_all;
@@ -209,6 +235,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     cube_meta_set_num(m, "RECRCUT", rcut, "[px] measured Fourier cut-off");
     cube_meta_set_num(m, "RECNTRI", (double)bispec_ntriples(b), "closure triangles stored");
     cube_meta_set_num(m, "RECMISF", bispec_misfit(b), "phase recursion's closure misfit");
+    cube_meta_set_num(m, "RECSNRPS", support_snr(ps, support, n, noise), "power-spectrum SNR over the support");
     cube_meta_set_num(m, "RECGAIN", g, "[adu/photon] photon-bias gain, 0 = floor");
 free_all:
     bispec_free(b);

@@ -87,6 +87,10 @@ typedef struct pipeline_opts {
     double wiener;            /* reference regulariser; 0 = default */
     int nthreads;             /* threads: direct bispectrum, 0 = 2; TSM
                                * (tsm.h), 0 = online CPUs, at most 4 */
+    int phase_weight;         /* direct: PHASOR_WEIGHT_* of the phase
+                               * recursion and refinement; -1 (default):
+                               * |B| for the recursion, and for the
+                               * refinement SNR on noisy data (pipeline.c) */
     int refine_iters;         /* direct: least-squares passes after the
                                * recursion; -1 (default): as its misfit
                                * asks (phasor.h) */

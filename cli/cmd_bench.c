@@ -1,5 +1,5 @@
 /* cmd_bench.c - `specklab bench`: run time against error on simulated
- * cubes with known truth (issue 6).
+ * cubes with known truth.
  *
  * A sweep is a Cartesian product: scenes x sizes x frame counts x photon
  * levels (the data sets, each simulated once into a FITS cube with its
@@ -13,18 +13,18 @@
  * source as --target.
  *
  * Presets: --quick (a handful of points, < 1 min, `make bench`),
- * --skips-report (bench_skips.c: each skip of issue 6 item 4 on and off,
- * and auto against fixed TSM-180), --speed
- * (issue 3's and 6's speed targets at 100 frames of 200^2, median of 5
- * runs, checked), the
- * default (the method grid on three scenes and two photon levels, plus
- * size and frame-count scaling; a few minutes), --paper (Table 2's layout
- * at 200^2 and 128^2, or --sizes, and a binaries table at the first
- * size; --paper ignores the other selections).  Any of --scenes, --sizes, --frames, --photons,
- * --methods, --projections, --r2, --ref, --target-error, --skips replaces
- * the preset's main sweep by one sweep built from the preset's lists with
- * those replaced.  Method auto is measured once per target error.
- */
+ * --skips-report (bench_skips.c: each skip on and off, and auto against
+ * fixed TSM-180), --speed (the speed targets at 100 frames of 200^2,
+ * median of 5 runs, checked), the default (the method grid on three
+ * scenes and two photon levels, plus size and frame-count scaling; a few
+ * minutes), --paper (Table 2's layout at 200^2 and 128^2, or --sizes, and
+ * a binaries table at the first size; it ignores the other selections),
+ * --blind (bench_blind.c: camera-like cubes without simulator keywords,
+ * its own matrix and report).  Any of --scenes, --sizes, --frames,
+ * --photons, --methods, --projections, --r2, --ref, --target-error,
+ * --skips replaces the preset's main sweep by one sweep built from the
+ * preset's lists with those replaced.  Method auto is measured once per
+ * target error. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -34,14 +34,16 @@
 
 #include <glib/gstdio.h>
 
+#include "bench_blind.h"
 #include "bench_cli.h"
 #include "pipeline.h"
 #include "tsm.h"
 
 typedef struct bench_args {
-    gboolean quick, paper, speed, skips_report, estimate, keep_data;
+    gboolean quick, paper, speed, skips_report, estimate, keep_data, blind;
     char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
     char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
+    char *conditions;
     int repeat, threads;
     gint64 seed;
     double interval_ms;   /* 0: the simulator's */
@@ -533,6 +535,19 @@ static int bench_main(bench_args *a)
     return rc ? rc : out || c.failures ? 1 : 0;
 }
 
+/* --blind: its own matrix (bench_blind.h); the sweep options do not apply. */
+static int run_blind(const bench_args *a)
+{
+    blind_opts o = {a->quick, a->csv, a->dir, a->methods, a->conditions,
+                    a->targets, a->repeat, a->threads, a->estimate,
+                    (uint64_t)a->seed,
+                    a->paper || a->speed || a->skips_report || a->scenes ||
+                    a->sizes || a->frames || a->photons || a->projections ||
+                    a->r2 || a->seps || a->dms || a->ref || a->skips ||
+                    a->catalog || a->png || a->interval_ms > 0};
+    return blind_run(&o);
+}
+
 int cmd_bench(int argc, char **argv)
 {
     bench_args a;
@@ -564,6 +579,8 @@ int cmd_bench(int argc, char **argv)
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "time/error chart (default bench.png; none: skip)", "FILE"},
         {"catalog", 0, 0, G_OPTION_ARG_FILENAME, &a.catalog, "also add rows to this catalogue's benchmarks table", "DB"},
         {"data-dir", 0, 0, G_OPTION_ARG_FILENAME, &a.dir, "simulate into DIR and keep the cubes (default: a temporary directory)", "DIR"},
+        {"blind", 0, 0, G_OPTION_ARG_NONE, &a.blind, "camera-like blind cubes, one factor at a time, default options (with --quick: 4 conditions, < 1 min; CSV default out/bench/blind.csv)", NULL},
+        {"conditions", 0, 0, G_OPTION_ARG_STRING, &a.conditions, "--blind: only these conditions (e.g. baseline,hot-50)", "LIST"},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx_ = g_option_context_new("- run time against error on simulated cubes");
     g_option_context_add_main_entries(ctx_, entries, NULL);
@@ -591,12 +608,17 @@ int cmd_bench(int argc, char **argv)
                 "--quick/--paper/--speed/--skips-report\n", BENCH_MAX_REPEAT);
         goto free_ctx;
     }
-    status = bench_main(&a);
+    if (a.conditions && !a.blind) {
+        fprintf(stderr, "specklab bench: --conditions needs --blind\n");
+        goto free_ctx;
+    }
+    status = a.blind ? run_blind(&a) : bench_main(&a);
 free_ctx:
     g_option_context_free(ctx_);
     g_free(a.scenes); g_free(a.sizes); g_free(a.frames); g_free(a.photons);
     g_free(a.methods); g_free(a.projections); g_free(a.r2); g_free(a.ref);
     g_free(a.seps); g_free(a.dms); g_free(a.targets); g_free(a.skips);
     g_free(a.csv); g_free(a.png); g_free(a.catalog); g_free(a.dir);
+    g_free(a.conditions);
     return status;
 }

@@ -1,4 +1,5 @@
-/* bench.c - see bench.h.  The chart is in bench_plot.c. */
+/* bench.c - see bench.h: measurement and scores.  The simulated data sets
+ * are in bench_sim.c, the chart in bench_plot.c. */
 #include "bench.h"
 
 #include <errno.h>
@@ -15,198 +16,7 @@
 #include <unistd.h>
 
 #include "cube.h"
-#include "mask.h"
 #include "metrics.h"
-#include "scene.h"
-#include "sim.h"
-
-#define RAD_ARCSEC 206264.80624709636
-
-void bench_sim_defaults(bench_sim *s)
-{
-    memset(s, 0, sizeof *s);
-    s->scene = "binary";
-    s->width = s->height = 128;
-    s->nframes = 100;
-    s->sep_lod = 6;
-    s->pa_deg = 30;
-    s->dm_mag = 1;
-    s->seed = 1;
-    s->r0_m = 0.2;
-    s->wind_mps = 10;
-    s->saturation_adu = 1e9;
-}
-
-/* The header `specklab sim` would write, for the keywords we read back. */
-static void sim_header(const bench_sim *b, const sim *s, double lod_px,
-                       double sep_arcsec, cube_meta *md)
-{
-    const sim_opts *o = sim_options(s);
-    cube_meta_init(md);
-    snprintf(md->instrume, sizeof md->instrume, "specklab-bench");
-    snprintf(md->object, sizeof md->object, "%s", b->scene);
-    snprintf(md->bunit, sizeof md->bunit, "%s",
-             o->photons_per_frame > 0 ? "adu" : "relative flux");
-    md->plate_scale_arcsec = sim_plate_scale_arcsec(s);
-    md->wavelength_m = o->wavelength_m;
-    cube_meta_set_str(md, "SIMSCENE", b->scene, "scene");
-    cube_meta_set_str(md, "SIMMASK", "nrm17", "pupil mask");
-    cube_meta_set_num(md, "NYQUIST", sim_nyquist_arcsec(s), "[arcsec/px] Nyquist");
-    cube_meta_set_num(md, "LODPX", lod_px, "[px] lambda/D, D = mask extent");
-    cube_meta_set_num(md, "SIMR0", o->r0_m, "[m] Fried parameter");
-    cube_meta_set_num(md, "SIMWIND", o->wind_mps, "[m/s] frozen-flow speed");
-    cube_meta_set_num(md, "SIMDT", o->frame_interval_s, "[s] frame interval");
-    cube_meta_set_num(md, "SIMSEED", (double)o->seed, "random seed");
-    cube_meta_set_num(md, "SIMPHOT", o->photons_per_frame, "mean photons/frame, 0 = noiseless");
-    if (o->photons_per_frame > 0) {
-        cube_meta_set_num(md, "SIMGAIN", o->gain_e_per_adu, "[e-/adu] gain");
-        cube_meta_set_num(md, "SIMSAT", o->saturation_adu, "[adu] saturation");
-    }
-    if (strcmp(b->scene, "binary") == 0) {
-        cube_meta_set_num(md, "BINSEP", sep_arcsec, "[arcsec] binary separation");
-        cube_meta_set_num(md, "BINSEPPX", sep_arcsec / sim_plate_scale_arcsec(s),
-                          "[px] binary separation");
-        cube_meta_set_num(md, "BINPA", b->pa_deg, "[deg] PA from +y (N) to -x (E)");
-        cube_meta_set_num(md, "BINDM", b->dm_mag, "[mag] companion dm");
-    }
-}
-
-/* An injected bad frame: empty (all zero) or saturated (x 20, clipped
- * at the frame's own peak). */
-static void spoil(float *f, size_t n, int saturated)
-{
-    float mx = 0;
-    for (size_t i = 0; i < n; i++)
-        mx = f[i] > mx ? f[i] : mx;
-    for (size_t i = 0; i < n; i++)
-        f[i] = !saturated ? 0.0f : f[i] * 20 < mx ? f[i] * 20 : mx;
-}
-
-/* Frames, TRUTH, COPHASED into path; the cophased image stays in buf.
- * bad > 0: frames 5, 15, 25, ... alternately emptied and saturated, bad
- * of each. */
-static int write_frames(sim *s, const char *path, const cube_meta *md,
-                        int bad, float *buf, sl_err *err)
-{
-    const sim_opts *o = sim_options(s);
-    cube_writer *w = NULL;
-    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, err);
-    if (rc != SL_OK)
-        return rc;
-    for (int k = 0; k < o->nframes && rc == SL_OK; k++) {
-        if ((rc = sim_frame(s, k, buf)) != SL_OK)
-            sl_seterr(err, rc, "frame %d: %s", k, sim_errmsg(s));
-        else if (k % 10 == 5 && k / 10 < 2 * bad)
-            spoil(buf, (size_t)o->width * o->height, (k / 10) % 2);
-        if (rc == SL_OK && (rc = cube_writer_append(w, buf)) != SL_OK)
-            sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    }
-    if (rc == SL_OK && (rc = sim_truth(s, buf)) == SL_OK &&
-        (rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height,
-                                    NULL)) != SL_OK)
-        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    if (rc == SL_OK && (rc = sim_cophased(s, buf)) == SL_OK &&
-        (rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height,
-                                    NULL)) != SL_OK)
-        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
-        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    cube_writer_free(w);
-    return rc;
-}
-
-int bench_sim_write(const bench_sim *b, const char *cube_path,
-                    const char *psf_path, sl_err *err)
-{
-    mask *m = NULL;
-    scene *sc = NULL;
-    sim *s = NULL;
-    float *buf = NULL;
-    sim_opts o;
-    sim_opts_defaults(&o);
-    o.width = b->width;
-    o.height = b->height;
-    o.nframes = b->nframes;
-    o.photons_per_frame = b->photons;
-    o.seed = b->seed;
-    o.plate_scale_arcsec = b->plate_scale_arcsec;
-    o.r0_m = b->r0_m > 0 ? b->r0_m : 0.2;
-    o.wind_mps = b->wind_mps;
-    if (b->frame_interval_s > 0)
-        o.frame_interval_s = b->frame_interval_s;
-    o.saturation_adu = b->saturation_adu > 0 ? b->saturation_adu : 1e9;
-    o.fftw_flags = FFTW_ESTIMATE;
-    int rc = mask_named(&m, "nrm17", err);
-    if (rc != SL_OK)
-        return rc;
-    double lod_arcsec = o.wavelength_m / mask_extent_m(m) * RAD_ARCSEC;
-    if (!(o.plate_scale_arcsec > 0) && b->oversample > 1)
-        o.plate_scale_arcsec = lod_arcsec / 2 / b->oversample; /* Nyquist / k */
-    double sep_arcsec = b->sep_lod * lod_arcsec;
-    if ((rc = scene_named(&sc, b->scene, sep_arcsec, b->pa_deg, b->dm_mag,
-                          err)) != SL_OK)
-        goto free_mask;
-    if ((rc = sim_new(&s, &o, m, sc, err)) != SL_OK)
-        goto free_scene;
-    buf = malloc(sizeof(float) * (size_t)o.width * (size_t)o.height);
-    if (!buf) {
-        rc = sl_seterr(err, SL_ENOMEM, "out of memory");
-        goto free_sim;
-    }
-    cube_meta md;
-    sim_header(b, s, lod_arcsec / sim_plate_scale_arcsec(s), sep_arcsec, &md);
-    if (b->bad_frames > 0)
-        cube_meta_set_num(&md, "SIMBAD", b->bad_frames,
-                          "frames emptied, and as many saturated");
-    if ((rc = write_frames(s, cube_path, &md, b->bad_frames, buf, err)) != SL_OK)
-        goto free_sim;
-    if (psf_path) {
-        seq img = {o.width, o.height, 1, buf};
-        rc = cube_write(psf_path, &img, &md, err);
-    }
-free_sim:
-    free(buf);
-    sim_free(s);
-free_scene:
-    scene_free(sc);
-free_mask:
-    mask_free(m);
-    return rc;
-}
-
-int bench_truth_read(bench_truth *t, const char *cube_path, sl_err *err)
-{
-    memset(t, 0, sizeof *t);
-    t->sep_px = t->pa_deg = t->dm_mag = NAN;
-    seq *img = NULL;
-    cube_reader *r = NULL;
-    const char *paths[] = {cube_path};
-    int rc = cube_reader_open(&r, paths, 1, CUBE_ALLOW_NONFINITE, err);
-    if (rc != SL_OK)
-        return rc;
-    const cube_meta *m = cube_reader_meta(r);
-    t->plate_scale_arcsec = m->plate_scale_arcsec;
-    t->binary = cube_meta_get_num(m, "BINSEPPX", &t->sep_px) == SL_OK &&
-                cube_meta_get_num(m, "BINPA", &t->pa_deg) == SL_OK &&
-                cube_meta_get_num(m, "BINDM", &t->dm_mag) == SL_OK;
-    cube_reader_free(r);
-    if ((rc = cube_read_ext(&img, cube_path, "COPHASED", err)) != SL_OK)
-        return rc;
-    t->width = img->width;
-    t->height = img->height;
-    t->cophased = img->data; /* take the pixels, free the shell */
-    img->data = NULL;
-    seq_free(img);
-    return SL_OK;
-}
-
-void bench_truth_clear(bench_truth *t)
-{
-    if (!t)
-        return;
-    free(t->cophased);
-    t->cophased = NULL;
-}
 
 /* ---- measurement ---- */
 
@@ -218,6 +28,7 @@ typedef struct child_report {
     double cp_sep, cp_pa, cp_dm;      /* CPSEP, CPPA, CPDM */
     int method_run;
     char chosen[64];
+    bench_verdict binary;
     double wall_s[BENCH_MAX_REPEAT], cpu_s[BENCH_MAX_REPEAT];
     char msg[SL_ERRMSG_MAX];
 } child_report;
@@ -266,6 +77,19 @@ static size_t read_all(int fd, void *buf, size_t n)
         got += (size_t)k;
     }
     return got;
+}
+
+static void copy_verdict(const pipeline_binary *b, bench_verdict *v)
+{
+    v->status = b->status;
+    v->source = b->source;
+    v->sep_px = b->sep_px;
+    v->sep_err_px = b->sep_err_px;
+    v->pa_deg = b->pa_deg;
+    v->pa_err_deg = b->pa_err_deg;
+    v->dm_mag = b->dm_mag;
+    v->dm_err_mag = b->dm_err_mag;
+    snprintf(v->why, sizeof v->why, "%s", b->why);
 }
 
 /* The child: never returns.  _exit skips atexit handlers and stdio
@@ -317,6 +141,7 @@ static void child_main(int fd, const char *cube, const pipeline_opts *o,
         rep->chosen[0] = 0;
         if (cube_meta_get_str(&r.meta, "RECCHOSE", &str) == SL_OK)
             snprintf(rep->chosen, sizeof rep->chosen, "%s", str);
+        copy_verdict(&r.binary, &rep->binary);
     }
     int bad = write_all(fd, rep, sizeof *rep);
     if (!bad && rep->status == SL_OK)
@@ -366,6 +191,8 @@ int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
     t->peak_rss_mb = t->r2_px = t->nangles = t->ntriples = NAN;
     t->crop_px = t->cutoff_cyc_px = t->rejected = t->pred_error = NAN;
     t->method_run = -1;
+    t->binary.sep_px = t->binary.sep_err_px = t->binary.pa_deg = NAN;
+    t->binary.pa_err_deg = t->binary.dm_mag = t->binary.dm_err_mag = NAN;
     if (repeat < 1 || repeat > BENCH_MAX_REPEAT || !cube || !o || !img)
         return sl_seterr(err, SL_EINVAL, "bench_measure: bad arguments "
                          "(repeat %d, 1..%d)", repeat, BENCH_MAX_REPEAT);
@@ -430,6 +257,7 @@ int bench_measure(const char *cube, const pipeline_opts *o, int repeat,
         t->cp_dm_mag = rep->cp_dm;
         t->method_run = rep->method_run;
         snprintf(t->chosen, sizeof t->chosen, "%s", rep->chosen);
+        t->binary = rep->binary;
     }
     free(rep);
     return rc;
@@ -506,6 +334,22 @@ static double wrap180(double d)
     if (d <= -180)
         d += 360;
     return d;
+}
+
+int bench_verdict_errors(const bench_verdict *v, const bench_truth *t,
+                         double *dsep_px, double *dpa_deg, double *ddm_mag)
+{
+    *dsep_px = *dpa_deg = *ddm_mag = NAN;
+    int amb = v->status == PIPE_BIN_AMBIGUOUS;
+    if (!t->binary || (v->status != PIPE_BIN_MEASURED && !amb))
+        return 0;
+    *dsep_px = v->sep_px - t->sep_px;
+    *ddm_mag = v->dm_mag - t->dm_mag;
+    double d = wrap180(v->pa_deg - t->pa_deg);
+    if (amb) /* modulo 180: into (-90, 90] */
+        d = d > 90 ? d - 180 : d <= -90 ? d + 180 : d;
+    *dpa_deg = d;
+    return 1;
 }
 
 void bench_score_init(bench_score *s)

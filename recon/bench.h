@@ -47,53 +47,110 @@ typedef struct bench_sim {
     int width, height, nframes;
     double photons;             /* per frame; 0 = noiseless */
     double sep_lod;             /* binary separation in lambda/D */
+    double sep_arcsec;          /* > 0: the separation in arcsec instead */
     double pa_deg, dm_mag;      /* binary position angle and dm */
     uint64_t seed;
     double plate_scale_arcsec;  /* 0 = Nyquist for the mask */
-    double r0_m;                /* Fried parameter at 500 nm */
+    double r0_m;                /* Fried parameter at the wavelength */
     double wind_mps;
     double frame_interval_s;    /* 0: the simulator's (10 ms) */
+    double exposure_s;          /* EXPTIME; 0: the simulator's (10 ms) */
     double saturation_adu;      /* detector clip level (photon frames) */
     double oversample;          /* > 1: sampled this x finer than Nyquist
                                  * (when plate_scale_arcsec is 0) */
+    double sampling_nyq;        /* > 0: plate scale = this x Nyquist (0.5
+                                 * oversampled, 2 undersampled); wins over
+                                 * oversample, loses to plate_scale_arcsec */
     int bad_frames;             /* > 0: that many frames made empty and as
                                  * many saturated (frames 5, 15, 25, ...
                                  * alternately), to exercise rejection */
+    /* The pupil: NULL or "nrm17" (the 17-hole mask) or "full", a filled
+     * aperture of aperture_m (0: 1.1 m, nrm17's outer extent) with a
+     * central obstruction (fraction of the diameter). */
+    const char *mask;
+    double aperture_m, obstruction;
+    int phase_model;            /* SIM_PHASE_SCREEN (0) or SIM_PHASE_PISTON */
+    double wavelength_m;        /* 0: 500 nm */
+    /* The detector (detector.h; with photons > 0).  0 keeps the
+     * simulator's default: gain 1, no read noise, bias, ADC or defects. */
+    double read_noise_e, gain_e_per_adu, bias_adu;
+    int adc_bits, hot_pixels, dead_pixels;
+    /* Pointing (sim.h): scene offset and per-frame jitter rms, px. */
+    double offset_x_px, offset_y_px, jitter_px;
+    int blind;                  /* write the cube as a camera would (see
+                                 * bench_sim_write) */
 } bench_sim;
 
 /* The paper's setting: 100 frames of 128^2, 17-hole mask, r0 0.2 m, wind
  * 10 m/s, 500 nm, Nyquist, noiseless; binary 6 lambda/D, PA 30, dm 1;
- * saturation 1e9 ADU (no clipping unless asked for). */
+ * saturation 1e9 ADU (no clipping unless asked for); everything else off. */
 void bench_sim_defaults(bench_sim *s);
 
 /* Simulate s into cube_path: the frames (with bad_frames: an empty frame
  * is all zeros, a saturated one the frame x 20 clipped at its own peak,
- * a detector driven far past full well), then the TRUTH and COPHASED image
- * extensions, with a header as `specklab sim` writes it (PLTSCALE,
- * WAVELEN, SIMPHOT, SIMGAIN, SIMSEED, SIMR0, SIMWIND, NYQUIST, LODPX and,
- * for a binary, BINSEP, BINSEPPX, BINPA, BINDM).  psf_path (may be NULL)
- * also receives the COPHASED image alone as a 2-D FITS, which is what
- * pipeline_opts.target_path takes.  Plans with FFTW_ESTIMATE: simulation
- * time is not what is measured.  Frames are streamed to disk. */
+ * a detector driven far past full well) in the BITPIX the detector asks
+ * for (sim_output_bitpix), then the TRUTH and COPHASED image extensions,
+ * with a header as `specklab sim` writes it (PLTSCALE, WAVELEN, SIMPHOT,
+ * SIMGAIN, SIMSEED, SIMR0, SIMWIND, SIMMASK, NYQUIST, LODPX and, for a
+ * binary, BINSEP, BINSEPPX, BINPA, BINDM).
+ * Blind (s->blind), as `specklab sim --blind`: the cube holds only the
+ * frames under DATE-OBS, EXPTIME and INSTRUME (no SIM*, BIN*, MASK*,
+ * NYQUIST, LODPX, PLTSCALE or WAVELEN, no extensions); everything else
+ * goes to the sidecar bench_sidecar_path(cube_path): its primary image is
+ * the truth under every keyword above (and SIMADC, SIMNHOT, SIMNDEAD,
+ * SIMOFFX/Y, SIMJITT, SIMPHMOD), then TRUTH and COPHASED.
+ * psf_path (may be NULL) also receives the COPHASED image alone as a 2-D
+ * FITS, which is what pipeline_opts.target_path takes.  Plans with
+ * FFTW_ESTIMATE: simulation time is not what is measured.  Frames are
+ * streamed to disk. */
 int bench_sim_write(const bench_sim *s, const char *cube_path,
                     const char *psf_path, sl_err *err);
 
+/* The sidecar of a blind cube: "X.fits" -> "X-truth.fits", anything else
+ * gets "-truth.fits" appended (`specklab sim --blind`'s default).  malloc'd;
+ * NULL when out of memory. */
+char *bench_sidecar_path(const char *cube_path);
+
+/* Set s->gain_e_per_adu so that a camera's operator would not saturate:
+ * the brightest pixel of the first 16 frames rendered noiseless (a pilot
+ * simulation, same seed) times the photons lands at fill (0..1] of the
+ * codes above the bias, full scale being 2^adc_bits - 1 (or the
+ * saturation, when lower).  The gain only goes up: a nominal gain that
+ * already fits is kept.  No-op for noiseless frames.  *peak_adu (may be
+ * NULL) receives that pixel's expected code with the chosen gain. */
+int bench_sim_fit_gain(bench_sim *s, double fill, double *peak_adu,
+                       sl_err *err);
+
 /* What a reconstruction is scored against, read back from a cube written
- * by bench_sim_write or `specklab sim`. */
+ * by bench_sim_write or `specklab sim`, or from a blind cube's sidecar. */
 typedef struct bench_truth {
     int width, height;
     float *cophased;            /* width*height, owned */
     int binary;                 /* BINSEPPX, BINPA and BINDM present */
     double sep_px, pa_deg, dm_mag;
     double plate_scale_arcsec;  /* NAN when absent */
+    double nyquist_arcsec;      /* NYQUIST; NAN when absent */
 } bench_truth;
 
-int bench_truth_read(bench_truth *t, const char *cube_path, sl_err *err);
+/* path: a cube with its extensions, or a sidecar.  A blind cube itself is
+ * refused (SL_EFORMAT naming its sidecar). */
+int bench_truth_read(bench_truth *t, const char *path, sl_err *err);
+/* The truth of the blind cube cube_path, from its sidecar. */
+int bench_truth_read_sidecar(bench_truth *t, const char *cube_path,
+                             sl_err *err);
 void bench_truth_clear(bench_truth *t);
 
 /* ---- measurement ------------------------------------------------------- */
 
 #define BENCH_MAX_REPEAT 32
+
+/* The binary verdict of the last run (pipeline_result.binary, copied out
+ * of the child): status PIPE_BIN_NONE without closure_binary. */
+typedef struct bench_verdict {
+    int status, source;         /* enum pipeline_binary_status, _source */
+    double sep_px, sep_err_px, pa_deg, pa_err_deg, dm_mag, dm_err_mag;
+    char why[96];
+} bench_verdict;
 
 typedef struct bench_timing {
     int repeat;                 /* runs made */
@@ -113,6 +170,7 @@ typedef struct bench_timing {
      * CPPA, CPDM); NAN when it did not run or found no binary. */
     double cp_sep_px, cp_pa_deg, cp_dm_mag;
     char chosen[64];            /* "" when nothing was chosen */
+    bench_verdict binary;
 } bench_timing;
 
 /* Run pipeline_run on cube with o, repeat (1..BENCH_MAX_REPEAT) times in
@@ -148,6 +206,15 @@ void bench_score_init(bench_score *s);
  * fields NAN and is not an error. */
 int bench_score_image(const float *img, const bench_truth *t,
                       double hp_sigma_px, bench_score *s, sl_err *err);
+/* The verdict v against the truth t: measured minus true separation
+ * (px), PA (deg) and dm (mag).  Measured: the PA wrapped to (-180, 180],
+ * so a companion put on the wrong side reads about 180.  Ambiguous (the PA
+ * known modulo 180): wrapped to (-90, 90].  Returns 1 with the three set,
+ * or 0 with them NAN (no binary in t, or a verdict of none, unresolved or
+ * inconsistent). */
+int bench_verdict_errors(const bench_verdict *v, const bench_truth *t,
+                         double *dsep_px, double *dpa_deg, double *ddm_mag);
+
 /* out = in - (in smoothed by a periodic Gaussian of sigma_px), separable,
  * truncated at 4 sigma.  in and out may alias.  Cost 2 w h (8 sigma + 1)
  * multiply-adds; allocates one w*h scratch.  SL_EINVAL for sigma <= 0. */

@@ -1,6 +1,8 @@
 /* test_bench.c - the benchmark helpers: Pareto front, the Gaussian
  * high-pass, scores against a known image, a measured child run that
- * reproduces the in-process result, and the chart canvas. */
+ * reproduces the in-process result, blind cubes and their sidecars, the
+ * fitted gain, the binary verdict's errors, and the chart canvas. */
+#include <fitsio.h>
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -106,6 +108,200 @@ TEST(measure_in_a_child_and_score)
     CHECK(rb != SL_OK && strstr(e.msg, "/nonexistent.fits"), "bad path: %d %s", rb, e.msg);
 }
 
+/* Every pixel of every frame: the largest, and how many reach full. */
+static int cube_peak(const char *path, double full, float *mx, int *nfull,
+                     int *integral)
+{
+    cube_reader *r = NULL;
+    sl_err e;
+    int rc = cube_reader_open(&r, &path, 1, 0, &e);
+    if (rc != SL_OK)
+        return rc;
+    size_t n = (size_t)cube_reader_width(r) * (size_t)cube_reader_height(r);
+    float *f = malloc(sizeof(float) * n);
+    *mx = -INFINITY;
+    *nfull = 0;
+    *integral = 1;
+    while (f && (rc = cube_reader_next(r, f)) == SL_OK)
+        for (size_t i = 0; i < n; i++) {
+            *mx = fmaxf(*mx, f[i]);
+            *nfull += f[i] >= full;
+            *integral &= f[i] == floorf(f[i]) && f[i] >= 0;
+        }
+    free(f);
+    cube_reader_free(r);
+    return rc == SL_EEND ? SL_OK : rc;
+}
+
+static int count_hdus(const char *path)
+{
+    fitsfile *fp = NULL;
+    int st = 0, n = -1;
+    if (fits_open_diskfile(&fp, path, READONLY, &st) == 0)
+        fits_get_num_hdus(fp, &n, &st);
+    if (fp) {
+        int st2 = 0;
+        fits_close_file(fp, &st2);
+    }
+    return st ? -1 : n;
+}
+
+/* A blind cube says only what a camera says, in one HDU; its sidecar holds
+ * the binary's geometry in px and a cophased image of unit flux.  At 2x
+ * Nyquist lambda/D is 1 px, so 6 lambda/D is 6 px whatever the mask. */
+TEST(blind_cube_and_its_sidecar)
+{
+    char dir[] = "/tmp/sl_blindXXXXXX", cube[64];
+    CHECK(mkdtemp(dir), "mkdtemp");
+    snprintf(cube, sizeof cube, "%s/cam.fits", dir);
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.width = s.height = 64;
+    s.nframes = 6;
+    s.pa_deg = 57;
+    s.sampling_nyq = 2;
+    s.photons = 2e4;
+    s.gain_e_per_adu = 2;
+    s.read_noise_e = 3;
+    s.bias_adu = 100;
+    s.adc_bits = 12;
+    s.hot_pixels = 3;
+    s.offset_x_px = 5;
+    s.offset_y_px = -3;
+    s.jitter_px = 1;
+    s.blind = 1;
+    sl_err e = {0}, eb = {0};
+    bench_truth tr = {0}, none = {0};
+    int rc = bench_sim_write(&s, cube, NULL, &e);
+    cube_meta m;
+    cube_meta_init(&m);
+    cube_reader *r = NULL;
+    const char *paths[] = {cube};
+    int ro = rc == SL_OK ? cube_reader_open(&r, paths, 1, 0, &e) : rc;
+    if (ro == SL_OK)
+        m = *cube_reader_meta(r);
+    int nframes = ro == SL_OK ? cube_reader_nframes(r) : -1;
+    cube_reader_free(r);
+    int hdus = count_hdus(cube);
+    char *side = bench_sidecar_path(cube);
+    int side_hdus = count_hdus(side);
+    int rb = bench_truth_read(&none, cube, &eb);
+    int rt = rc == SL_OK ? bench_truth_read_sidecar(&tr, cube, &e) : rc;
+    float mx;
+    int nfull, integral;
+    int rp = rc == SL_OK ? cube_peak(cube, 4095, &mx, &nfull, &integral) : rc;
+    double sum = 0;
+    for (int i = 0; rt == SL_OK && i < tr.width * tr.height; i++)
+        sum += tr.cophased[i];
+    int shape = tr.width == 64 && tr.height == 64;
+    bench_truth_clear(&tr);
+    unlink(cube);
+    unlink(side);
+    rmdir(dir);
+    CHECK(rc == SL_OK && ro == SL_OK && rt == SL_OK && rp == SL_OK, "%s", e.msg);
+    CHECK(nframes == 6 && hdus == 1 && side_hdus == 3, "cube: %d frames, %d HDUs; "
+          "sidecar %d HDUs", nframes, hdus, side_hdus);
+    CHECK(m.nextra == 0, "the blind cube has %d extra keywords, first %s", m.nextra,
+          m.nextra ? m.extra[0].key : "");
+    CHECK(isnan(m.plate_scale_arcsec) && isnan(m.wavelength_m) && m.instrume[0] &&
+          !strstr(m.instrume, "bench") && !strstr(m.instrume, "sim"),
+          "camera header: PLTSCALE %g WAVELEN %g INSTRUME '%s'", m.plate_scale_arcsec,
+          m.wavelength_m, m.instrume);
+    CHECK(integral && mx <= 4095 && nfull == 3 * 6, "12-bit codes: integral %d, max %g, "
+          "%d at full scale (3 hot pixels x 6 frames)", integral, mx, nfull);
+    CHECK(rb == SL_EFORMAT && strstr(eb.msg, side), "the cube read as truth: %d %s", rb,
+          eb.msg);
+    free(side);
+    CHECK(tr.binary && fabs(tr.sep_px - 6) < 1e-9 && tr.pa_deg == 57 && tr.dm_mag == 1,
+          "sidecar truth: binary %d, sep %.6f px, PA %g, dm %g", tr.binary, tr.sep_px,
+          tr.pa_deg, tr.dm_mag);
+    CHECK(shape && fabs(sum - 1) < 1e-3, "cophased %s, flux %.6f", shape ? "64x64" : "size?",
+          sum);
+}
+
+/* The fitted gain puts the brightest pixel at half the codes above the
+ * bias: an 8-bit converter at 1e5 photons does not saturate with it, where
+ * the nominal 2 e-/ADU would; a gain that already fits is kept. */
+TEST(fitted_gain_keeps_the_peak_in_range)
+{
+    char dir[] = "/tmp/sl_gainXXXXXX", cube[64];
+    CHECK(mkdtemp(dir), "mkdtemp");
+    snprintf(cube, sizeof cube, "%s/g.fits", dir);
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.width = s.height = 64;
+    s.nframes = 16;
+    s.photons = 1e5;
+    s.gain_e_per_adu = 2;
+    s.bias_adu = 6;
+    s.adc_bits = 8;
+    s.blind = 1;
+    bench_sim dim = s, dark = s;
+    dim.photons = 300;
+    dark.photons = 0;
+    sl_err e = {0};
+    double peak = 0, peak_dim = 0, peak_dark = 0;
+    int rc = bench_sim_fit_gain(&s, 0.5, &peak, &e);
+    int rd = bench_sim_fit_gain(&dim, 0.5, &peak_dim, &e);
+    int rz = bench_sim_fit_gain(&dark, 0.5, &peak_dark, &e);
+    int rw = rc == SL_OK ? bench_sim_write(&s, cube, NULL, &e) : rc;
+    float mx = 0;
+    int nfull = -1, integral = 0;
+    int rp = rw == SL_OK ? cube_peak(cube, 255, &mx, &nfull, &integral) : rw;
+    char *side = bench_sidecar_path(cube);
+    unlink(cube);
+    unlink(side);
+    free(side);
+    rmdir(dir);
+    CHECK(rc == SL_OK && rd == SL_OK && rz == SL_OK && rw == SL_OK && rp == SL_OK, "%s",
+          e.msg);
+    CHECK(s.gain_e_per_adu > 2 && fabs(peak - (6 + 0.5 * 249)) < 1e-6,
+          "gain %g, expected brightest code %g", s.gain_e_per_adu, peak);
+    /* the frames' own brightest code: the pilot's peak plus noise */
+    CHECK(nfull == 0 && mx > 0.8 * peak && mx < 1.5 * peak && integral,
+          "8-bit frames: max %g (expected ~%g), %d at 255", mx, peak, nfull);
+    CHECK(dim.gain_e_per_adu == 2 && peak_dim < 6 + 0.5 * 249, "dim: gain %g, peak %g",
+          dim.gain_e_per_adu, peak_dim);
+    CHECK(isnan(peak_dark) && dark.gain_e_per_adu == 2, "noiseless: gain %g, peak %g",
+          dark.gain_e_per_adu, peak_dark);
+    s.bias_adu = 300;
+    CHECK(bench_sim_fit_gain(&s, 0.5, NULL, &e) == SL_EINVAL && strstr(e.msg, "bias"),
+          "a bias above full scale: %s", e.msg);
+}
+
+/* Measured: the PA on the full circle, so the mirrored companion is 180
+ * off; ambiguous: modulo 180.  No verdict, no errors. */
+TEST(verdict_errors_take_the_pa_modulo_180_only_when_ambiguous)
+{
+    bench_truth tr = {0};
+    tr.binary = 1;
+    tr.sep_px = 12;
+    tr.pa_deg = 57;
+    tr.dm_mag = 1;
+    bench_verdict v = {0};
+    v.status = PIPE_BIN_MEASURED;
+    v.sep_px = 12.1;
+    v.pa_deg = 237.2;
+    v.dm_mag = 0.95;
+    double ds, dp, dd;
+    CHECK(bench_verdict_errors(&v, &tr, &ds, &dp, &dd) == 1, "measured");
+    CHECK(fabs(ds - 0.1) < 1e-9 && fabs(dp - (-179.8)) < 1e-9 && fabs(dd + 0.05) < 1e-9,
+          "measured, flipped: %g %g %g", ds, dp, dd);
+    v.status = PIPE_BIN_AMBIGUOUS;
+    CHECK(bench_verdict_errors(&v, &tr, &ds, &dp, &dd) == 1 && fabs(dp - 0.2) < 1e-9,
+          "ambiguous, flipped: dPA %g", dp);
+    v.pa_deg = 56.5 - 360;
+    CHECK(bench_verdict_errors(&v, &tr, &ds, &dp, &dd) == 1 && fabs(dp + 0.5) < 1e-9,
+          "ambiguous, unflipped: dPA %g", dp);
+    v.status = PIPE_BIN_UNRESOLVED;
+    CHECK(bench_verdict_errors(&v, &tr, &ds, &dp, &dd) == 0 && isnan(ds) && isnan(dp) &&
+          isnan(dd), "unresolved: %g %g %g", ds, dp, dd);
+    v.status = PIPE_BIN_MEASURED;
+    tr.binary = 0;
+    CHECK(bench_verdict_errors(&v, &tr, &ds, &dp, &dd) == 0 && isnan(ds),
+          "no binary in the truth: %g", ds);
+}
+
 TEST(canvas_draws_clips_and_measures_text)
 {
     sl_err e = {0};
@@ -129,4 +325,7 @@ TEST(canvas_draws_clips_and_measures_text)
 TC_MAIN(TC_CASE(pareto_front_is_the_non_dominated_set),
         TC_CASE(highpass_removes_constants_and_keeps_fine_detail),
         TC_CASE(measure_in_a_child_and_score),
+        TC_CASE(blind_cube_and_its_sidecar),
+        TC_CASE(fitted_gain_keeps_the_peak_in_range),
+        TC_CASE(verdict_errors_take_the_pa_modulo_180_only_when_ambiguous),
         TC_CASE(canvas_draws_clips_and_measures_text))

@@ -70,7 +70,7 @@ static int tsm_add_fn(void *h, const float *f) { return tsm_add(h, f); }
  * mean flux of this very pass. */
 static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
                             double photons, double *ps, double *g_out,
-                            double *bias_out, sl_err *err)
+                            double *bias_out, int *nframes_out, sl_err *err)
 {
     powspec_opts po;
     powspec_opts_default(&po);
@@ -96,6 +96,8 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
         *g_out = g;
     if (bias_out)
         *bias_out = powspec_bias(p);
+    if (nframes_out)
+        *nframes_out = powspec_nframes(p);
     powspec_free(p);
     return rc;
 }
@@ -158,7 +160,8 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         goto free_all;
     }
     double noise = 0;
-    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, &noise, err)) != SL_OK)
+    int nps = 1;
+    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, &noise, &nps, err)) != SL_OK)
         goto free_all;
     /* Support at 3 sigma, not 5: the threshold acts on the object's power,
      * so at low photon counts it keeps a binary's fringe maxima and drops
@@ -169,7 +172,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
      * six-star at 1000 photons c 0.74 -> 0.85; noiseless unchanged (the
      * 1e-6 floor decides there). */
     double rcut = 0;
-    powspec_support(ps, s->w, s->h, 3, 1e-6, 1.0, support, &rcut);
+    powspec_support(ps, s->w, s->h, 3, 1e-6, 1.0, noise / sqrt(nps), support, &rcut);
     bispec_opts bo;
     bispec_opts_default(&bo);
     int side = s->w < s->h ? s->w : s->h;
@@ -210,7 +213,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK)
             goto free_all;
         rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
-                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, err);
+                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, NULL, err);
         if (rc != SL_OK)
             goto free_all;
         powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);

@@ -246,17 +246,26 @@ double powspec_bias(const powspec *p)
     if (p->o.bias == POWSPEC_BIAS_PHOTON)
         return p->pbias / p->n;
     if (p->o.bias == POWSPEC_BIAS_FLOOR) {
-        /* The floor_stats region, read through the half plane. */
-        double s = 0;
-        size_t m = 0;
+        /* The floor_stats region, read through the half plane, in two
+         * parts: up to and beyond 1.2 x floor_rho.  White noise is flat;
+         * when the inner part stands 10 % above the outer one, speckle
+         * reaches the corners (sampling coarser than Nyquist) and only
+         * the outer part, the least of it, stands for the floor. */
+        double s[2] = {0, 0};
+        size_t m[2] = {0, 0};
         for (int j = 0; j < p->h; j++)
-            for (int i = 0; i < p->w; i++)
-                if (rho_of(i, j, p->w, p->h) > p->o.floor_rho) {
-                    int mir;
-                    s += p->ps[half_index(p, i, j, &mir)];
-                    m++;
+            for (int i = 0; i < p->w; i++) {
+                double r = rho_of(i, j, p->w, p->h);
+                if (r > p->o.floor_rho) {
+                    int mir, k = r > 1.2 * p->o.floor_rho;
+                    s[k] += p->ps[half_index(p, i, j, &mir)];
+                    m[k]++;
                 }
-        return m ? s / m / p->n : 0.0;
+            }
+        double in = m[0] ? s[0] / m[0] : 0, out = m[1] ? s[1] / m[1] : in;
+        if (m[1] && in > 1.1 * out)
+            return out / p->n;
+        return m[0] + m[1] ? (s[0] + s[1]) / (m[0] + m[1]) / p->n : 0.0;
     }
     return 0.0;
 }
@@ -314,14 +323,16 @@ int powspec_modulus(const double *ps_obj, const double *ps_ref, int w, int h,
 }
 
 int powspec_support(const double *ps, int w, int h, double nsigma,
-                    double rel_min, double floor_rho, unsigned char *mask,
-                    double *rcut_px)
+                    double rel_min, double floor_rho, double noise_sd,
+                    unsigned char *mask, double *rcut_px)
 {
     if (!ps || !mask || w < 4 || h < 4)
         return SL_EINVAL;
     double fm, fsd;
     size_t m = floor_stats(ps, w, h, floor_rho, &fm, &fsd);
     double thr = fmax(m ? fm + nsigma * fsd : 0.0, rel_min * ps[0]);
+    if (noise_sd > 0)
+        thr = fmax(nsigma * noise_sd, rel_min * ps[0]);
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
             int nyq = (w % 2 == 0 && i == w / 2) || (h % 2 == 0 && j == h / 2);

@@ -28,7 +28,9 @@ enum {
      * the read noise's flat rn^2 sum_x w(x)^2 (rn = read_noise_adu). */
     POWSPEC_BIAS_PHOTON = 1,
     /* Estimated: the mean of the mean power spectrum over rho > floor_rho
-     * (white noise of any origin: photons, read noise), subtracted. */
+     * (white noise of any origin: photons, read noise), subtracted; only
+     * beyond 1.2 floor_rho when that part is 10 % lower (speckle aliased
+     * into the corners). */
     POWSPEC_BIAS_FLOOR = 2
 };
 
@@ -87,13 +89,19 @@ int powspec_modulus(const double *ps_obj, const double *ps_ref, int w, int h,
 
 /* Where the mean power spectrum is above the noise: mask[k] = 1 where
  * ps[k] > max(floor_mean + nsigma * floor_std, rel_min * ps[0]), with the
- * floor statistics over rho > floor_rho.  Nyquist rows/columns are
+ * floor statistics over rho > floor_rho; or, when noise_sd > 0 (the
+ * standard deviation of the white noise's mean power at one frequency:
+ * its level / sqrt(frames), exponential statistics), where ps[k] >
+ * max(nsigma * noise_sd, rel_min * ps[0]).  The floor region's spread
+ * holds speckle too when the sampling is coarser than Nyquist: at 2x it
+ * left direct 4199 triples and no binary, so callers that know the noise
+ * level pass it.  Nyquist rows/columns are
  * excluded, DC is always in, pixels without a 4-neighbour in the mask
  * (isolated noise spikes) are dropped; the mask is point-symmetric because
  * ps is.  rcut_px (may be NULL) gets the largest hypot(p, q) in the mask.
  * Typical: nsigma 5, rel_min 1e-6, floor_rho 1. */
 int powspec_support(const double *ps, int w, int h, double nsigma,
-                    double rel_min, double floor_rho, unsigned char *mask,
-                    double *rcut_px);
+                    double rel_min, double floor_rho, double noise_sd,
+                    unsigned char *mask, double *rcut_px);
 
 #endif

@@ -439,7 +439,9 @@ static int measure_spectrum(probe *p)
             }
         }
     if ((rc = powspec_result(ps, pw)) != SL_OK ||
-        (rc = powspec_support(pw, cw, ch, 5, 1e-6, 1.0, mask, NULL)) != SL_OK) {
+        (rc = powspec_support(pw, cw, ch, 5, 1e-6, 1.0,
+                              powspec_bias(ps) / sqrt(fmax(sc->nprobed_kept, 1)),
+                              mask, NULL)) != SL_OK) {
         sl_seterr(&p->err, rc, "probe: power spectrum of the crop failed");
         goto free_all;
     }

@@ -214,7 +214,7 @@ TEST(photon_bias_removed)
             }
     double mean = s / m, se = sqrt((s2 / m - mean * mean) / m);
     double rcut = 0;
-    int rc = powspec_support(ps, n, n, 5.0, 1e-6, 1.0, mask, &rcut);
+    int rc = powspec_support(ps, n, n, 5.0, 1e-6, 1.0, 0, mask, &rcut);
     int outside = 0, lowmiss = 0, nlow = 0;
     for (int j = 0; j < n; j++)
         for (int i = 0; i < n; i++) {

@@ -112,9 +112,13 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
             cube_meta_get_num(&r->meta, "RECREJ", &rej) == SL_OK)
             printf("  skips: reconstructed on %.0fx%.0f, %.0f frame(s) rejected\n",
                    cw, ch, rej);
+        double target = 0.1;
         if (cube_meta_get_str(&r->meta, "RECCHOSE", &chosen) == SL_OK &&
-            cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK)
-            printf("  chosen: %s (predicted 1 - c %.3f)\n", chosen, pred);
+            cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK) {
+            cube_meta_get_num(&r->meta, "RECTGERR", &target);
+            printf("  chosen: %s (predicted 1 - c %.3f%s)\n", chosen, pred,
+                   pred > target ? ", above the target: no configuration is expected to meet it" : "");
+        }
         binmeas_print(&r->binary, r->plate_scale_arcsec);
     }
 }

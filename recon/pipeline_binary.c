@@ -27,6 +27,7 @@
 #include "pipeline_int.h"
 
 #define SIGN_CHI2_MIN 25.0
+#define FRINGE_MAX_SEP_PX 16.0
 /* A companion needs r above 5 of its (jackknife) sigmas and the closure
  * phases to fit 50 chi^2 better with it than without: a reconstructed
  * point source's residual closure phases (60 noiseless frames through the
@@ -184,7 +185,10 @@ void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
     if (!r->have_image && e.msg[0])
         why = e.msg;
     int frc = SL_EDATA;
-    double max_sep = 0.25 * (w < h ? w : h);
+    /* The fringe fit is for pairs the image cannot resolve: a few
+     * lambda/D, 16 px even at 2x Nyquist.  Its grid costs 8 max_sep^2
+     * passes over the samples (2 s at 50 px on TSM's 180 angles). */
+    double max_sep = fmin(0.25 * (w < h ? w : h), FRINGE_MAX_SEP_PX);
     if (in->ps2d)
         frc = fringe_fit_2d(in->ps2d, w, h, in->noise, in->nframes, in->rcut_px,
                             max_sep, &r->fringe, NULL);

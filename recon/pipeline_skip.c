@@ -57,7 +57,12 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
     if (choose) {
         /* frames the model expects to be kept: the probed proportion */
         int nk = (int)((double)s->n * sc->nprobed_kept / sc->nprobed + 0.5);
-        autoconf_choose(sc, nk, o->method, !!(skips & PIPE_SKIP_ANGLES),
+        /* A binary wanted: direct, whose closure phases measured it within
+         * 0.15 px / 0.5 deg / 0.1 mag in 21 of 25 blind conditions where
+         * tsm-fourier's raw ones, cheaper, met 16 (dm +0.10..+0.32 at 1e4
+         * photons, with jitter, at 0.5x Nyquist). */
+        int m = o->method == PIPE_AUTO && o->closure_binary ? PIPE_DIRECT : o->method;
+        autoconf_choose(sc, nk, m, !!(skips & PIPE_SKIP_ANGLES),
                         o->nangles, !!(skips & PIPE_SKIP_SUPPORT),
                         !!(skips & PIPE_SKIP_CROP), o->target_error, ch);
         if ((rc = probe_set_crop(s->pb, ch->crop_level)) != SL_OK)

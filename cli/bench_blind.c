@@ -9,6 +9,7 @@
 #include <glib/gstdio.h>
 
 #include "bench_blind.h"
+#include "sim_file.h"
 #include "pipeline.h"
 #include "sim.h"
 
@@ -323,7 +324,7 @@ static void measure(blind_ctx *c, blind_row *r, const char *cube,
 
 static void remove_data(const char *cube)
 {
-    char *side = bench_sidecar_path(cube);
+    char *side = sim_file_sidecar_path(cube);
     g_unlink(cube);
     if (side)
         g_unlink(side);

@@ -26,6 +26,7 @@
 #include "preview.h"
 #include "scene.h"
 #include "sim.h"
+#include "sim_file.h"
 
 /* INSTRUME of a --blind cube: a camera, not the simulator. */
 #define BLIND_INSTRUME "CMOS camera"
@@ -183,18 +184,11 @@ static void camera_meta(cube_meta *md, const sim_args *a, const sim *s)
     md->exptime_s = sim_options(s)->exposure_s;
 }
 
-/* TRUTH and COPHASED image extensions, then close. */
+/* Add the truth extensions (with_truth) and close. */
 static int finish_file(sim *s, cube_writer *w, float *buf, sl_err *e)
 {
-    const sim_opts *o = sim_options(s);
-    int rc = sim_truth(s, buf);
-    if (rc == SL_OK)
-        rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height, NULL);
-    if (rc == SL_OK && (rc = sim_cophased(s, buf)) == SL_OK)
-        rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height, NULL);
+    int rc = sim_file_add_truth(s, w, buf, e);
     if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
-        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
-    else if (rc != SL_OK && e->msg[0] == 0)
         sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
     return rc;
 }
@@ -222,35 +216,6 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
         sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
     cube_writer_free(w);
     return rc;
-}
-
-/* The --blind sidecar: the truth as its primary image (one frame) under
- * every SIM* keyword, then TRUTH and COPHASED as in a normal output. */
-static int write_sidecar(sim *s, const char *path, const cube_meta *md,
-                         float *buf, sl_err *e)
-{
-    const sim_opts *o = sim_options(s);
-    cube_writer *w = NULL;
-    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, e);
-    if (rc != SL_OK)
-        return rc;
-    if ((rc = sim_truth(s, buf)) == SL_OK &&
-        (rc = cube_writer_append(w, buf)) != SL_OK)
-        sl_seterr(e, rc, "%s", cube_writer_errmsg(w));
-    if (rc == SL_OK)
-        rc = finish_file(s, w, buf, e);
-    cube_writer_free(w);
-    return rc;
-}
-
-/* OUTPUT with ".fits" replaced by "-truth.fits", else "-truth.fits"
- * appended. */
-static char *sidecar_path(const char *out)
-{
-    size_t n = strlen(out);
-    if (n > 5 && strcmp(out + n - 5, ".fits") == 0)
-        return g_strdup_printf("%.*s-truth.fits", (int)(n - 5), out);
-    return g_strdup_printf("%s-truth.fits", out);
 }
 
 static int write_pngs(sim *s, const char *prefix, float *buf, sl_err *e)
@@ -367,7 +332,9 @@ static int write_outputs(sim_args *a, sim *s, const scene *sc, const mask *m,
         if (write_cube(s, a->out, &md, buf, 1, e) != SL_OK)
             return 0;
     } else {
-        a->truth_path = a->truth_out ? g_strdup(a->truth_out) : sidecar_path(a->out);
+        char *side = sim_file_sidecar_path(a->out);
+        a->truth_path = g_strdup(a->truth_out ? a->truth_out : side);
+        free(side);
         if (!strcmp(a->truth_path, a->out)) {
             sl_seterr(e, SL_EINVAL, "--truth-out %s is the output cube itself",
                       a->truth_path);
@@ -379,7 +346,7 @@ static int write_outputs(sim_args *a, sim *s, const scene *sc, const mask *m,
         fill_meta(&md, a, s, sc, m, 1);
         /* the sidecar's own image is the truth */
         snprintf(md.bunit, sizeof md.bunit, "relative flux");
-        if (write_sidecar(s, a->truth_path, &md, buf, e) != SL_OK)
+        if (sim_file_write_sidecar(s, a->truth_path, &md, buf, e) != SL_OK)
             return 0;
     }
     return !a->png || write_pngs(s, a->png, buf, e) == SL_OK;

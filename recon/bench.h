@@ -96,7 +96,7 @@ void bench_sim_defaults(bench_sim *s);
  * Blind (s->blind), as `specklab sim --blind`: the cube holds only the
  * frames under DATE-OBS, EXPTIME and INSTRUME (no SIM*, BIN*, MASK*,
  * NYQUIST, LODPX, PLTSCALE or WAVELEN, no extensions); everything else
- * goes to the sidecar bench_sidecar_path(cube_path): its primary image is
+ * goes to the sidecar sim_file_sidecar_path(cube_path) (sim_file.h): its primary image is
  * the truth under every keyword above (and SIMADC, SIMNHOT, SIMNDEAD,
  * SIMOFFX/Y, SIMJITT, SIMPHMOD), then TRUTH and COPHASED.
  * psf_path (may be NULL) also receives the COPHASED image alone as a 2-D
@@ -106,10 +106,6 @@ void bench_sim_defaults(bench_sim *s);
 int bench_sim_write(const bench_sim *s, const char *cube_path,
                     const char *psf_path, sl_err *err);
 
-/* The sidecar of a blind cube: "X.fits" -> "X-truth.fits", anything else
- * gets "-truth.fits" appended (`specklab sim --blind`'s default).  malloc'd;
- * NULL when out of memory. */
-char *bench_sidecar_path(const char *cube_path);
 
 /* Set s->gain_e_per_adu so that a camera's operator would not saturate:
  * the brightest pixel of the first 16 frames rendered noiseless (a pilot

@@ -3,6 +3,7 @@
  * sim` writes it, or as a camera would (blind) with the truth in a
  * sidecar; the gain a camera's operator would pick; the truth read back. */
 #include "bench.h"
+#include "sim_file.h"
 
 #include <fftw3.h>
 #include <math.h>
@@ -123,25 +124,6 @@ static void spoil(float *f, size_t n, int saturated)
         f[i] = !saturated ? 0.0f : f[i] * 20 < mx ? f[i] * 20 : mx;
 }
 
-/* TRUTH and COPHASED after the last frame; the cophased image stays in
- * buf. */
-static int add_truth(sim *s, cube_writer *w, float *buf, sl_err *err)
-{
-    const sim_opts *o = sim_options(s);
-    int rc;
-    if ((rc = sim_truth(s, buf)) != SL_OK)
-        return sl_seterr(err, rc, "truth: %s", sim_errmsg(s));
-    if ((rc = cube_writer_add_image(w, "TRUTH", buf, o->width, o->height,
-                                    NULL)) != SL_OK)
-        return sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    if ((rc = sim_cophased(s, buf)) != SL_OK)
-        return sl_seterr(err, rc, "cophased image: %s", sim_errmsg(s));
-    if ((rc = cube_writer_add_image(w, "COPHASED", buf, o->width, o->height,
-                                    NULL)) != SL_OK)
-        return sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    return SL_OK;
-}
-
 /* Frames into path, then (with_truth) TRUTH and COPHASED.  bad > 0:
  * frames 5, 15, 25, ... alternately emptied and saturated, bad of each. */
 static int write_frames(sim *s, const char *path, const cube_meta *md,
@@ -162,45 +144,11 @@ static int write_frames(sim *s, const char *path, const cube_meta *md,
             sl_seterr(err, rc, "%s: frame %d: %s", path, k, cube_writer_errmsg(w));
     }
     if (rc == SL_OK && with_truth)
-        rc = add_truth(s, w, buf, err);
+        rc = sim_file_add_truth(s, w, buf, err);
     if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
         sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
     cube_writer_free(w);
     return rc;
-}
-
-/* A blind cube's sidecar: the truth as its one frame under md, then TRUTH
- * and COPHASED (left in buf). */
-static int write_sidecar(sim *s, const char *path, const cube_meta *md,
-                         float *buf, sl_err *err)
-{
-    const sim_opts *o = sim_options(s);
-    cube_writer *w = NULL;
-    int rc = cube_writer_open(&w, path, o->width, o->height, -32, md, err);
-    if (rc != SL_OK)
-        return rc;
-    if ((rc = sim_truth(s, buf)) != SL_OK)
-        sl_seterr(err, rc, "truth: %s", sim_errmsg(s));
-    else if ((rc = cube_writer_append(w, buf)) != SL_OK)
-        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    if (rc == SL_OK)
-        rc = add_truth(s, w, buf, err);
-    if (rc == SL_OK && (rc = cube_writer_close(w)) != SL_OK)
-        sl_seterr(err, rc, "%s", cube_writer_errmsg(w));
-    cube_writer_free(w);
-    return rc;
-}
-
-char *bench_sidecar_path(const char *cube_path)
-{
-    size_t n = strlen(cube_path);
-    int ext = n > 5 && strcmp(cube_path + n - 5, ".fits") == 0;
-    size_t stem = ext ? n - 5 : n;
-    char *p = malloc(stem + sizeof "-truth.fits");
-    if (p)
-        snprintf(p, stem + sizeof "-truth.fits", "%.*s-truth.fits",
-                 (int)stem, cube_path);
-    return p;
 }
 
 static void sim_options_of(const bench_sim *b, sim_opts *o)
@@ -299,7 +247,7 @@ int bench_sim_write(const bench_sim *b, const char *cube_path,
         return rc;
     const sim_opts *o = sim_options(s);
     float *buf = malloc(sizeof(float) * (size_t)o->width * (size_t)o->height);
-    char *side = b->blind ? bench_sidecar_path(cube_path) : NULL;
+    char *side = b->blind ? sim_file_sidecar_path(cube_path) : NULL;
     cube_meta *md = malloc(sizeof *md), *cam = malloc(sizeof *cam);
     if (!buf || !md || !cam || (b->blind && !side)) {
         rc = sl_seterr(err, SL_ENOMEM, "out of memory");
@@ -311,7 +259,7 @@ int bench_sim_write(const bench_sim *b, const char *cube_path,
         if ((rc = write_frames(s, cube_path, cam, b->bad_frames, 0, buf,
                                err)) == SL_OK) {
             snprintf(md->bunit, sizeof md->bunit, "relative flux");
-            rc = write_sidecar(s, side, md, buf, err);
+            rc = sim_file_write_sidecar(s, side, md, buf, err);
         }
     } else {
         rc = write_frames(s, cube_path, md, b->bad_frames, 1, buf, err);
@@ -396,7 +344,7 @@ int bench_truth_read(bench_truth *t, const char *path, sl_err *err)
                 cube_meta_get_num(m, "BINDM", &t->dm_mag) == SL_OK;
     cube_reader_free(r);
     if (!simulated) {
-        char *side = bench_sidecar_path(path);
+        char *side = sim_file_sidecar_path(path);
         rc = sl_seterr(err, SL_EFORMAT, "%s has no simulation keywords (a "
                        "blind cube?): its truth is in its sidecar %s", path,
                        side ? side : "");
@@ -416,7 +364,7 @@ int bench_truth_read(bench_truth *t, const char *path, sl_err *err)
 int bench_truth_read_sidecar(bench_truth *t, const char *cube_path,
                              sl_err *err)
 {
-    char *side = bench_sidecar_path(cube_path);
+    char *side = sim_file_sidecar_path(cube_path);
     if (!side) {
         memset(t, 0, sizeof *t);
         return sl_seterr(err, SL_ENOMEM, "out of memory");

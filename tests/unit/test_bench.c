@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "sim_file.h"
 #include "cube.h"
 #include "metrics.h"
 #include "pipeline.h"
@@ -183,7 +184,7 @@ TEST(blind_cube_and_its_sidecar)
     int nframes = ro == SL_OK ? cube_reader_nframes(r) : -1;
     cube_reader_free(r);
     int hdus = count_hdus(cube);
-    char *side = bench_sidecar_path(cube);
+    char *side = sim_file_sidecar_path(cube);
     int side_hdus = count_hdus(side);
     int rb = bench_truth_read(&none, cube, &eb);
     int rt = rc == SL_OK ? bench_truth_read_sidecar(&tr, cube, &e) : rc;
@@ -248,7 +249,7 @@ TEST(fitted_gain_keeps_the_peak_in_range)
     float mx = 0;
     int nfull = -1, integral = 0;
     int rp = rw == SL_OK ? cube_peak(cube, 255, &mx, &nfull, &integral) : rw;
-    char *side = bench_sidecar_path(cube);
+    char *side = sim_file_sidecar_path(cube);
     unlink(cube);
     unlink(side);
     free(side);

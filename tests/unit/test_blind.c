@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "bench.h"
+#include "sim_file.h"
 #include "pipeline.h"
 #include "sim.h"
 #include "tcheck.h"
@@ -30,7 +31,7 @@ static int blind_write(blind_cube *c, const bench_sim *s, sl_err *e)
 
 static void blind_remove(blind_cube *c)
 {
-    char *side = bench_sidecar_path(c->path);
+    char *side = sim_file_sidecar_path(c->path);
     if (side)
         unlink(side);
     free(side);

@@ -44,9 +44,15 @@ schema_libs   = $(shell $(PKG) --libs $(SCHEMA_PKGS) 2>/dev/null)
 daemon_cflags = $(shell $(PKG) --cflags $(DAEMON_PKGS) 2>/dev/null)
 daemon_libs   = $(shell $(PKG) --libs $(DAEMON_PKGS) 2>/dev/null)
 
-RECON_SRC := $(wildcard recon/*.c)
+# recon/ in rooms (README, Layout): base, io, sim, spectra, tsm, pipeline,
+# measure -> librecon.a; bench (the benchmark and its charts) -> its own
+# archive, which the CLI and the tests link and specklabd never does.
+RECON_SRC := $(filter-out recon/bench/%,$(wildcard recon/*/*.c))
 RECON_OBJ := $(RECON_SRC:%.c=$(BUILD)/%.o)
 RECON_LIB := $(BUILD)/librecon.a
+BENCH_SRC := $(wildcard recon/bench/*.c)
+BENCH_OBJ := $(BENCH_SRC:%.c=$(BUILD)/%.o)
+BENCH_LIB := $(BUILD)/libbench.a
 
 # drivers/: cameras (Aravis, libusb) and the stage (libmodbus).  Never
 # includes daemon/ and never links a mock.
@@ -97,7 +103,7 @@ all: $(PROGS) $(ALL_TESTS)
 
 $(BUILD)/recon/%.o: recon/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) $(recon_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon $(recon_cflags) -c $< -o $@
 
 $(BUILD)/cli/%.o: cli/%.c
 	@mkdir -p $(dir $@)
@@ -140,18 +146,18 @@ $(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(RECON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(schema_libs) -lm
 
-$(BUILD)/tests/%: tests/stress/%.c $(RECON_LIB)
+$(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(RECON_LIB) $(recon_libs)
+	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
-	    $(LDFLAGS_ALL) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) \
+	    $(LDFLAGS_ALL) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) -lm
 
 # The soak program (make soak only): the integration fixture plus the
@@ -169,13 +175,17 @@ $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
+$(BENCH_LIB): $(BENCH_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
 $(CLI_LIB): $(filter-out $(CLI_MAIN),$(CLI_OBJ))
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
 	    $(recon_libs) $(cli_libs) $(schema_libs)
 
 $(BUILD)/daemon/%.o: daemon/%.c
@@ -187,10 +197,10 @@ $(BIN)/specklabd: $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
 	    $(recon_libs) $(daemon_libs) -lm
 
-$(BUILD)/tests/%: tests/unit/%.c $(RECON_LIB)
+$(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(RECON_LIB) $(recon_libs)
+	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
 
 $(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
@@ -271,26 +281,26 @@ FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g \
                -fno-omit-frame-pointer $(WARN) \
                -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 FUZZ_BIN   := $(patsubst tests/fuzz/%.c,$(FUZZ_BUILD)/%,$(wildcard tests/fuzz/fuzz_*.c))
-FUZZ_FITS_SRC  := recon/cube.c recon/cube_guard.c recon/cube_write.c recon/seq.c \
-                  recon/status.c
-FUZZ_MASK_SRC  := recon/mask.c recon/mask_gen.c recon/rng.c recon/status.c
-FUZZ_SCENE_SRC := recon/scene.c recon/status.c
-FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/status.c
-FUZZ_CONFIG_SRC := daemon/config.c recon/status.c recon/pipeline_skips.c
+FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
+                  recon/base/seq.c recon/base/status.c
+FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
+FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
+FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/base/status.c
+FUZZ_CONFIG_SRC := daemon/config.c recon/base/status.c recon/pipeline/pipeline_skip_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c recon/pipeline_skips.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
+                     daemon/config.c recon/pipeline/pipeline_skip_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
-$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/cube.h recon/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
+$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/io/cube.h recon/io/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $(shell $(PKG) --cflags cfitsio) $< $(FUZZ_FITS_SRC) -o $@ \
 	    $(shell $(PKG) --libs cfitsio) -lm
-$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/mask.h recon/mask_int.h tests/fuzz/fuzz_util.h
+$(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/sim/mask.h recon/sim/mask_int.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_MASK_SRC) -o $@ -lm
-$(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/scene.h tests/fuzz/fuzz_util.h
+$(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/sim/scene.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_SCENE_SRC) -o $@ -lm
 $(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stage.h drivers/stage_modbus.h

@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "bench_cli.h"
-#include "pipeline.h"
+#include "pipeline/pipeline.h"
 
 static gchar **split(const char *s) { return g_strsplit(s, ",", -1); }
 

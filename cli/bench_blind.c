@@ -9,9 +9,9 @@
 #include <glib/gstdio.h>
 
 #include "bench_blind.h"
-#include "sim_file.h"
-#include "pipeline.h"
-#include "sim.h"
+#include "sim/sim_file.h"
+#include "pipeline/pipeline.h"
+#include "sim/sim.h"
 
 #define DEFAULT_METHODS "direct,tsm-fourier,tsm,auto"
 

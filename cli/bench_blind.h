@@ -26,7 +26,7 @@
 
 #include <stdint.h>
 
-#include "bench.h"
+#include "bench/bench.h"
 #include "cli.h"
 
 /* The summary's bounds on a binary verdict. */

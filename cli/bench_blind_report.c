@@ -6,8 +6,8 @@
 #include <string.h>
 
 #include "bench_blind.h"
-#include "pipeline.h"
-#include "sim.h"
+#include "pipeline/pipeline.h"
+#include "sim/sim.h"
 
 static int ok(const blind_row *r) { return r->status == SL_OK; }
 

@@ -4,7 +4,7 @@
 #ifndef SL_BENCH_CLI_H
 #define SL_BENCH_CLI_H
 
-#include "bench.h"
+#include "bench/bench.h"
 #include "cli.h"
 
 /* A configuration to measure on a data set. */

@@ -9,8 +9,8 @@
 #include <string.h>
 
 #include "bench_cli.h"
-#include "pipeline.h"
-#include "tsm.h"
+#include "pipeline/pipeline.h"
+#include "tsm/tsm.h"
 
 static int ok(const bcli_row *r) { return r->status == SL_OK; }
 

@@ -8,8 +8,8 @@
 
 #include "bench_cli.h"
 #include "catalog.h"
-#include "pipeline.h"
-#include "tsm.h"
+#include "pipeline/pipeline.h"
+#include "tsm/tsm.h"
 
 static int ok(const bcli_row *r) { return r->status == SL_OK; }
 static double err1(const bcli_row *r) { return 1.0 - r->s.c; }

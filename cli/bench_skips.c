@@ -18,7 +18,7 @@
 #include <string.h>
 
 #include "bench_cli.h"
-#include "pipeline.h"
+#include "pipeline/pipeline.h"
 
 enum { BLOCK_SKIPS = 4 };
 

@@ -3,8 +3,8 @@
 #define SL_BINMEAS_H
 
 #include "cli.h"
-#include "cube.h"
-#include "pipeline.h"
+#include "io/cube.h"
+#include "pipeline/pipeline.h"
 
 /* The verdict an image's header carries (MEAS*, CP*); status NONE when
  * the image was made without --binary. */

@@ -8,7 +8,7 @@
  * go to a FIFO read by client_next_event, replies to other pipelined
  * requests to a table read by their own client_wait_reply.
  *
- * Errors follow recon/status.h: SL_OK or a negative code, the message in
+ * Errors follow recon/base/status.h: SL_OK or a negative code, the message in
  * the handle (client_errmsg) or, for client_connect, in the caller's
  * sl_err.  Besides the SL_E* codes there are three client codes:
  *   CLIENT_EUNREACHABLE  no daemon listening at the path (ENOENT,
@@ -31,7 +31,7 @@
 
 #include <json-glib/json-glib.h>
 
-#include "status.h"
+#include "base/status.h"
 
 enum {
     CLIENT_EUNREACHABLE = -30,

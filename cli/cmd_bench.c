@@ -36,8 +36,8 @@
 
 #include "bench_blind.h"
 #include "bench_cli.h"
-#include "pipeline.h"
-#include "tsm.h"
+#include "pipeline/pipeline.h"
+#include "tsm/tsm.h"
 
 typedef struct bench_args {
     gboolean quick, paper, speed, skips_report, estimate, keep_data, blind;

@@ -25,7 +25,7 @@
 
 #include "camera.h"
 #include "cli.h"
-#include "cube.h"
+#include "io/cube.h"
 
 #define FLUSH_FRAMES 100
 

@@ -3,7 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
-#include "mask.h"
+#include "sim/mask.h"
 
 static int load(const char *name, mask **m, sl_err *e)
 {

@@ -8,12 +8,12 @@
 #include "binmeas.h"
 #include "cli.h"
 #include "cmd_daemon.h"
-#include "cube.h"
-#include "metrics.h"
-#include "pipeline.h"
-#include "powspec.h"
-#include "preview.h"
-#include "tsm.h"
+#include "io/cube.h"
+#include "measure/metrics.h"
+#include "pipeline/pipeline.h"
+#include "spectra/powspec.h"
+#include "io/preview.h"
+#include "tsm/tsm.h"
 
 typedef struct recon_args {
     char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
@@ -282,7 +282,7 @@ int cmd_recon(int argc, char **argv)
         "--method auto probes the first 32 frames (speckle cloud, Fourier support,\n"
         "the image's extent, frame quality, SNR) and runs the cheapest configuration\n"
         "a model calibrated on `specklab bench` expects to reach --target-error\n"
-        "(1 - c against a perfect, cophased image; recon/autoconf.c).  Skips, also\n"
+        "(1 - c against a perfect, cophased image; recon/pipeline/autoconf.c).  Skips, also\n"
         "for the fixed methods with --skips: reject empty, saturated and outlier\n"
         "frames; reconstruct on a crop holding the speckle cloud; cut TSM at the\n"
         "measured Fourier support; take TSM's projections from the measured extent.\n"
@@ -458,8 +458,8 @@ int cmd_binary(int argc, char **argv)
     g_option_context_add_main_entries(ctx, entries, NULL);
     g_option_context_set_description(ctx,
         "PA is measured from +y (north) towards -x (east), fainter relative to brighter.\n"
-        "An image is fitted as it is (recon/binary.h); one that `recon -m direct\n"
-        "--binary` made also reports its closure-phase fit (recon/closure.h).  A cube\n"
+        "An image is fitted as it is (recon/measure/binary.h); one that `recon -m direct\n"
+        "--binary` made also reports its closure-phase fit (recon/spectra/closure.h).  A cube\n"
         "(NAXIS3 > 1) is first reconstructed with direct, in memory, and gets both.");
     if (!cli_parse(ctx, &argc, &argv))
         goto free_ctx;

@@ -21,12 +21,12 @@
 #include <fftw3.h>
 
 #include "cli.h"
-#include "cube.h"
-#include "mask.h"
-#include "preview.h"
-#include "scene.h"
-#include "sim.h"
-#include "sim_file.h"
+#include "io/cube.h"
+#include "sim/mask.h"
+#include "io/preview.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
+#include "sim/sim_file.h"
 
 /* INSTRUME of a --blind cube: a camera, not the simulator. */
 #define BLIND_INSTRUME "CMOS camera"

@@ -4,7 +4,7 @@
 
 #include "cli.h"
 #include "cmd_daemon.h"
-#include "wisdom.h"
+#include "base/wisdom.h"
 
 typedef struct command {
     const char *name;

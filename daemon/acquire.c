@@ -19,9 +19,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cube.h"
+#include "io/cube.h"
 #include "cubefile.h"
-#include "seeing.h"
+#include "measure/seeing.h"
 
 #define POP_SLICE_MS 200        /* abort and loss are checked this often */
 #define FLUSH_US 100000         /* cube flush + progress event period */

@@ -6,7 +6,7 @@
  * whichever layer set it.
  */
 #include "config.h"
-#include "pipeline.h"
+#include "pipeline/pipeline.h"
 
 #include <errno.h>
 #include <glib.h>

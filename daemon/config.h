@@ -23,7 +23,7 @@
 #ifndef SL_DAEMON_CONFIG_H
 #define SL_DAEMON_CONFIG_H
 
-#include "status.h"
+#include "base/status.h"
 
 #define CONFIG_MAX_SLOTS 16
 
@@ -48,7 +48,7 @@ typedef struct config {
     /* The detector's photon statistics, written as GAIN [e-/ADU, scaled
      * by the camera's Gain setting] and RDNOISE [e-] into every cube so
      * that the reconstruction removes the photon bias exactly
-     * (recon/pipeline.h).  NaN: unknown, keywords not written. */
+     * (recon/pipeline/pipeline.h).  NaN: unknown, keywords not written. */
     double gain_e_per_adu;      /* at camera Gain 0 dB */
     double read_noise_e;
     /* [stage] */

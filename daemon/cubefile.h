@@ -16,7 +16,7 @@
 #include <stdint.h>
 
 #include "camera.h"
-#include "status.h"
+#include "base/status.h"
 
 /* One buffer the camera delivered, good or damaged. */
 typedef struct cubefile_row {

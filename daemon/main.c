@@ -41,7 +41,7 @@
 #include "cubefile.h"
 #include "dispatch.h"
 /* After GLib: recon's `mask` typedef would clash with gutils.h parameters. */
-#include "mask.h"
+#include "sim/mask.h"
 
 typedef struct opts {
     char *config, *socket, *data_dir;

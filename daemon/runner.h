@@ -19,7 +19,7 @@
  * fault or timeout before acquiring; camera lost, disk full, too many
  * damaged frames while acquiring) and aborted (request or daemon stop);
  * both keep every frame on disk as a valid .part cube, catalogued with
- * its checksum.  The seeing (r0 from image motion, recon/seeing.h) of
+ * its checksum.  The seeing (r0 from image motion, recon/measure/seeing.h) of
  * each stored run is added to its screen's history.
  */
 #ifndef SL_DAEMON_RUNNER_H

@@ -27,7 +27,7 @@
 
 #include <glib.h>
 
-#include "status.h"
+#include "base/status.h"
 
 #define SERVER_MAX_LINE 65536
 #define SERVER_MAX_OUTPUT (16u << 20)

@@ -12,9 +12,9 @@
 
 #include "catlock.h"
 #include "cubefile.h"
-#include "pipeline.h"
-#include "preview.h"
-#include "wisdom.h"
+#include "pipeline/pipeline.h"
+#include "io/preview.h"
+#include "base/wisdom.h"
 
 typedef struct wjob {
     char uuid[CATALOG_UUID_LEN + 1];
@@ -152,7 +152,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
         (rc = preview_write_png(o->png, res.image, res.width, res.height, PREVIEW_ASINH, e)) !=
             SL_OK)
         goto clear_result;
-    /* The verdict (recon/pipeline_binary.c): the closure-phase fit, else
+    /* The verdict (recon/pipeline/pipeline_binary.c): the closure-phase fit, else
      * the image fit, else the power spectrum's fringes; catalogued as a
      * binary only when measured, or ambiguous (PA modulo 180 deg).  An
      * unresolved or inconsistent pair keeps no numbers, and says why. */

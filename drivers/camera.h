@@ -40,7 +40,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "status.h"
+#include "base/status.h"
 
 enum {
     CAMERA_ETIMEOUT = -20, /* no frame / no reply within the deadline */

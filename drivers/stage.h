@@ -30,7 +30,7 @@
 #define SL_STAGE_H
 
 #include "stage_map.h"
-#include "status.h"
+#include "base/status.h"
 
 typedef struct stage stage;
 

@@ -22,7 +22,7 @@
  *       --sourcedir=schema --target=$(BUILD)/schema/catalog_res.c \
  *       schema/catalog.gresource.xml
  *   (dependencies for make: the same with --generate-dependencies)
- * and link schema/catalog*.c, that catalog_res.c and recon/status.c with
+ * and link schema/catalog*.c, that catalog_res.c and recon/base/status.c with
  *   $(pkg-config --cflags --libs sqlite3 gio-2.0 glib-2.0) -lm.
  *
  * SQL.  Every statement is a string literal (schema/catalog_sql.c; the
@@ -57,13 +57,13 @@
 
 #include <stdint.h>
 
-#include "status.h"
+#include "base/status.h"
 
 typedef struct catalog catalog;
 
 #define CATALOG_UUID_LEN 36
 #define CATALOG_BUSY_TIMEOUT_MS 5000
-/* = MASK_MAX_HOLES in recon/mask.h. */
+/* = MASK_MAX_HOLES in recon/sim/mask.h. */
 #define CATALOG_MAX_HOLES 256
 /* "2024-05-01T12:34:56.789Z" and its NUL, with room to spare. */
 #define CATALOG_TIME_MAX 32

@@ -39,9 +39,9 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "mask.h"
-#include "scene.h"
-#include "sim.h"
+#include "sim/mask.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 
 #define FAKECAM_MAX_SLOTS 16
 #define FAKECAM_ARCSEC_PER_RAD (180.0 * 3600.0 / 3.14159265358979323846)

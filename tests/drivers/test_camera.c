@@ -40,7 +40,7 @@
 #include <unistd.h>
 
 #include "camera.h"
-#include "cube.h"
+#include "io/cube.h"
 #include "stage_map.h"
 #include "proc_fx.h"
 #include "tcheck.h"

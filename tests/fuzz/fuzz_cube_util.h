@@ -3,7 +3,7 @@
 #ifndef SL_FUZZ_CUBE_UTIL_H
 #define SL_FUZZ_CUBE_UTIL_H
 
-#include "cube.h"
+#include "io/cube.h"
 #include "fuzz_util.h"
 
 /* The harness owns the frame buffer: bounds of one pass, not the reader's. */

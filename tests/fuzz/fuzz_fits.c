@@ -1,4 +1,4 @@
-/* fuzz_fits.c - libFuzzer target: the FITS reader of recon/cube.c on one
+/* fuzz_fits.c - libFuzzer target: the FITS reader of recon/io/cube.c on one
  * arbitrary file.
  *
  * The input is the whole file.  cfitsio wants a path, so the bytes go to a
@@ -23,7 +23,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "cube.h"
+#include "io/cube.h"
 #define FUZZ_NAME "fuzz_fits"
 #include "fuzz_util.h"
 #include "fuzz_cube_util.h"

@@ -1,4 +1,4 @@
-/* fuzz_fits_list.c - libFuzzer target: the FITS reader of recon/cube.c on
+/* fuzz_fits_list.c - libFuzzer target: the FITS reader of recon/io/cube.c on
  * a frame LIST of two files (cube_reader_open with npaths = 2).
  *
  * The input is split at the first "\n--8<--\n" (FITS headers hold no
@@ -17,7 +17,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "cube.h"
+#include "io/cube.h"
 #define FUZZ_NAME "fuzz_fits_list"
 #include "fuzz_util.h"
 #include "fuzz_cube_util.h"

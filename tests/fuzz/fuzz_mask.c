@@ -24,7 +24,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "mask.h"
+#include "sim/mask.h"
 #define FUZZ_NAME "fuzz_mask"
 #include "fuzz_util.h"
 

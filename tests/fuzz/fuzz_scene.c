@@ -20,7 +20,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "scene.h"
+#include "sim/scene.h"
 #define FUZZ_NAME "fuzz_scene"
 #include "fuzz_util.h"
 

@@ -12,7 +12,7 @@
 
 #include "bench_blind.h"
 #include "cli.h"
-#include "pipeline.h"
+#include "pipeline/pipeline.h"
 #include "tcheck.h"
 
 static const char *const methods[] = {"direct", "tsm-fourier", "tsm", "auto"};

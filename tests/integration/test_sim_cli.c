@@ -10,7 +10,7 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "cube.h"
+#include "io/cube.h"
 #include "tcheck.h"
 
 typedef struct fx {

@@ -16,10 +16,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "bench.h"
-#include "cube.h"
-#include "metrics.h"
-#include "pipeline.h"
+#include "bench/bench.h"
+#include "io/cube.h"
+#include "measure/metrics.h"
+#include "pipeline/pipeline.h"
 #include "tcheck.h"
 
 typedef struct fx {

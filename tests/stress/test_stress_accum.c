@@ -19,11 +19,11 @@
 #include <fftw3.h>
 #include <stdlib.h>
 
-#include "bispec.h"
-#include "powspec.h"
-#include "rng.h"
+#include "spectra/bispec.h"
+#include "spectra/powspec.h"
+#include "base/rng.h"
 #include "tcheck.h"
-#include "tsm.h"
+#include "tsm/tsm.h"
 
 #define N 32
 #define NFRAMES 100000

@@ -6,12 +6,12 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#include "bench.h"
-#include "sim_file.h"
-#include "cube.h"
-#include "metrics.h"
-#include "pipeline.h"
-#include "plot.h"
+#include "bench/bench.h"
+#include "sim/sim_file.h"
+#include "io/cube.h"
+#include "measure/metrics.h"
+#include "pipeline/pipeline.h"
+#include "bench/plot.h"
 #include "tcheck.h"
 
 TEST(pareto_front_is_the_non_dominated_set)

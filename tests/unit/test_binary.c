@@ -4,12 +4,12 @@
  * D the pupil's outer extent), noiseless and with white noise. */
 #include <fftw3.h>
 
-#include "binary.h"
-#include "mask.h"
-#include "metrics.h"
-#include "rng.h"
-#include "scene.h"
-#include "sim.h"
+#include "measure/binary.h"
+#include "sim/mask.h"
+#include "measure/metrics.h"
+#include "base/rng.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 #include "tcheck.h"
 
 #include <stdlib.h>

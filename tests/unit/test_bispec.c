@@ -5,10 +5,10 @@
 #include <complex.h>
 #include <fftw3.h>
 
-#include "bispec.h"
-#include "metrics.h"
-#include "powspec.h"
-#include "rng.h"
+#include "spectra/bispec.h"
+#include "measure/metrics.h"
+#include "spectra/powspec.h"
+#include "base/rng.h"
 #include "speckle_gen.h"
 #include "tcheck.h"
 

@@ -11,9 +11,9 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "bispec.h"
-#include "powspec.h"
-#include "rng.h"
+#include "spectra/bispec.h"
+#include "spectra/powspec.h"
+#include "base/rng.h"
 #include "tcheck.h"
 
 /* Mean real and imaginary part of the corrected bispectrum over the

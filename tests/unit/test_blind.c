@@ -7,10 +7,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "bench.h"
-#include "sim_file.h"
-#include "pipeline.h"
-#include "sim.h"
+#include "bench/bench.h"
+#include "sim/sim_file.h"
+#include "pipeline/pipeline.h"
+#include "sim/sim.h"
 #include "tcheck.h"
 
 typedef struct blind_cube {

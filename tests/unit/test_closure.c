@@ -5,14 +5,14 @@
  * its bounds end to end through pipeline_run. */
 #include <fftw3.h>
 
-#include "binary.h"
-#include "bispec.h"
-#include "cube.h"
-#include "mask.h"
-#include "pipeline.h"
-#include "scene.h"
-#include "sim.h"
-#include "tsm.h"
+#include "measure/binary.h"
+#include "spectra/bispec.h"
+#include "io/cube.h"
+#include "sim/mask.h"
+#include "pipeline/pipeline.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
+#include "tsm/tsm.h"
 #include "tcheck.h"
 
 #include <stdlib.h>

@@ -1,6 +1,6 @@
 /* test_cube.c - FITS frame I/O: round trips, streaming, crash safety,
  * errors, and the real A 258 frames checked against a hand-decoded read. */
-#include "cube.h"
+#include "io/cube.h"
 #include "tcheck.h"
 
 #include <dirent.h>

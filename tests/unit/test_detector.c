@@ -2,8 +2,8 @@
  * hot and dead pixels, output type, option errors. */
 #include <stdlib.h>
 
-#include "cube.h"
-#include "detector.h"
+#include "io/cube.h"
+#include "sim/detector.h"
 #include "tcheck.h"
 
 enum { W = 48, H = 40, N = W * H };

@@ -1,6 +1,6 @@
 /* test_mask.c - pupils and aperture masks: redundancy against a brute-force
  * count, generator constraints, file round trips and errors, rendering. */
-#include "mask.h"
+#include "sim/mask.h"
 
 #include "tcheck.h"
 

@@ -4,8 +4,8 @@
 #include <complex.h>
 #include <fftw3.h>
 
-#include "metrics.h"
-#include "rng.h"
+#include "measure/metrics.h"
+#include "base/rng.h"
 #include "tcheck.h"
 
 #include <stdlib.h>

@@ -5,12 +5,12 @@
 
 #include <fftw3.h>
 
-#include "cube.h"
-#include "metrics.h"
-#include "pipeline.h"
-#include "sim.h"
+#include "io/cube.h"
+#include "measure/metrics.h"
+#include "pipeline/pipeline.h"
+#include "sim/sim.h"
 #include "tcheck.h"
-#include "tsm.h"
+#include "tsm/tsm.h"
 
 #define N 96
 

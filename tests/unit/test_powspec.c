@@ -4,8 +4,8 @@
 #include <complex.h>
 #include <fftw3.h>
 
-#include "powspec.h"
-#include "rng.h"
+#include "spectra/powspec.h"
+#include "base/rng.h"
 #include "speckle_gen.h"
 #include "tcheck.h"
 

@@ -1,9 +1,9 @@
 /* test_prep.c - pre-processing: dark, flat, sky, bad pixels, window. */
 #include <stdlib.h>
 
-#include "cube.h"
-#include "prep.h"
-#include "rawstats.h"
+#include "io/cube.h"
+#include "pipeline/prep.h"
+#include "pipeline/rawstats.h"
 #include "tcheck.h"
 
 #define W 48

@@ -1,6 +1,6 @@
 /* test_preview.c - quick-look PNGs read back with libpng: size, black =
  * min, white = max, north up, monotonic stretches. */
-#include "preview.h"
+#include "io/preview.h"
 #include "tcheck.h"
 
 #include <png.h>

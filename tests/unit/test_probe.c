@@ -4,12 +4,12 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#include "bench.h"
-#include "cube.h"
-#include "metrics.h"
-#include "pipeline.h"
-#include "probe.h"
-#include "rng.h"
+#include "bench/bench.h"
+#include "io/cube.h"
+#include "measure/metrics.h"
+#include "pipeline/pipeline.h"
+#include "pipeline/probe.h"
+#include "base/rng.h"
 #include "tcheck.h"
 
 /* A binary of Gaussian stars (sigma 1.5 px), primary 1, companion 0.4, at

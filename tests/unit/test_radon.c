@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "radon.h"
+#include "tsm/radon.h"
 #include "tcheck.h"
 
 /* Pearson correlation (the paper's c) without registration. */

@@ -3,8 +3,8 @@
 #include <fftw3.h>
 #include <stdlib.h>
 
-#include "radon.h"
-#include "radon_spatial.h"
+#include "tsm/radon.h"
+#include "tsm/radon_spatial.h"
 #include "tcheck.h"
 
 typedef struct geom {

@@ -5,8 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rawstats.h"
-#include "rng.h"
+#include "pipeline/rawstats.h"
+#include "base/rng.h"
 #include "tcheck.h"
 
 #define W 64

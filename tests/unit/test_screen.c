@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "screen.h"
+#include "sim/screen.h"
 #include "tcheck.h"
 
 #define D_KOLMO 6.8838771823 /* 2 (24/5 Gamma(6/5))^(5/6) */

@@ -3,8 +3,8 @@
 
 #include <fftw3.h>
 
-#include "seeing.h"
-#include "sim.h"
+#include "measure/seeing.h"
+#include "sim/sim.h"
 #include "tcheck.h"
 
 /* Run the estimator on a simulated sequence with r0_m; returns r0 found. */

@@ -4,9 +4,9 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#include "mask.h"
-#include "scene.h"
-#include "sim.h"
+#include "sim/mask.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 #include "tcheck.h"
 
 /* A small, fast configuration: 64x64 frames, 10 frames, Nyquist. */

@@ -5,9 +5,9 @@
 #include <fftw3.h>
 #include <stdlib.h>
 
-#include "mask.h"
-#include "scene.h"
-#include "sim.h"
+#include "sim/mask.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 #include "tcheck.h"
 
 static void small_opts(sim_opts *o, int n)

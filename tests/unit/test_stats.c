@@ -1,8 +1,8 @@
 /* test_stats.c - the selection median against sorting. */
 #include <stdlib.h>
 
-#include "rng.h"
-#include "stats.h"
+#include "base/rng.h"
+#include "base/stats.h"
 #include "tcheck.h"
 
 static int cmpf(const void *a, const void *b)

@@ -14,14 +14,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mask.h"
-#include "metrics.h"
-#include "radon.h"
-#include "rng.h"
-#include "scene.h"
-#include "sim.h"
+#include "sim/mask.h"
+#include "measure/metrics.h"
+#include "tsm/radon.h"
+#include "base/rng.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 #include "tcheck.h"
-#include "tsm.h"
+#include "tsm/tsm.h"
 
 typedef struct synth {
     int n;

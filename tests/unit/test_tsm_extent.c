@@ -1,5 +1,5 @@
 /* test_tsm_extent.c - step 3's angular average capped by the object's
- * diameter (recon/tsm_extent.c).
+ * diameter (recon/tsm/tsm_extent.c).
  *
  * extent_analytic: projection power spectra of a binary of Gaussian stars
  * (sigma 1.5 px, r = 1, projected separation d |cos theta|): the
@@ -13,12 +13,12 @@
 #include <fftw3.h>
 #include <stdlib.h>
 
-#include "mask.h"
-#include "metrics.h"
-#include "scene.h"
-#include "sim.h"
+#include "sim/mask.h"
+#include "measure/metrics.h"
+#include "sim/scene.h"
+#include "sim/sim.h"
 #include "tcheck.h"
-#include "tsm.h"
+#include "tsm/tsm.h"
 
 static void binary_power(double *ps, int nang, int nf, int ns, double d, double r)
 {

@@ -5,7 +5,7 @@
 #include <unistd.h>
 
 #include "tcheck.h"
-#include "wisdom.h"
+#include "base/wisdom.h"
 
 TEST(wisdom_round_trip)
 {

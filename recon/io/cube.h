@@ -1,0 +1,175 @@
+/* cube.h - FITS frame I/O for the seq type (cfitsio at the edge).
+ *
+ * A sequence on disk is either one FITS cube (NAXIS=3, NAXIS3 = frames),
+ * one 2-D image (one frame) or a list of 2-D images / cubes of equal size
+ * read as ONE sequence.  Pixels come back as float32 in the seq layout
+ * (pixel (x, y) of a frame is frame[y*width + x], x = NAXIS1), with
+ * BSCALE/BZERO applied by cfitsio.
+ *
+ * Streaming: the reader keeps at most one file open and never buffers more
+ * than the frame the caller passes in, so 1000 frames of 1024^2 cost the
+ * caller's one frame of memory.  The writer grows NAXIS3 with every frame,
+ * so after cube_writer_flush() the file on disk is a valid cube of every
+ * frame appended so far: a crash loses at most the unflushed frames.
+ *
+ * Metadata: the standard keywords have fields; every other user keyword
+ * travels in a bounded list of extras so a read/write round trip keeps
+ * simulation and processing parameters.
+ */
+#ifndef SL_CUBE_H
+#define SL_CUBE_H
+
+#include "base/seq.h"
+#include "base/status.h"
+
+/* ---- metadata ---------------------------------------------------------- */
+
+#define CUBE_KEY_MAX 9      /* 8-character FITS keyword + NUL */
+#define CUBE_STR_MAX 69     /* a one-card FITS string value: 68 chars + NUL */
+#define CUBE_COMMENT_MAX 73 /* cfitsio's FLEN_COMMENT */
+#define CUBE_META_MAX_EXTRA 128
+
+typedef enum cube_kv_type {
+    CUBE_KV_NUM,  /* written as an integer when integral, else %.17G */
+    CUBE_KV_STR,
+    CUBE_KV_BOOL  /* FITS logical; only produced by reading (num = 0/1) */
+} cube_kv_type;
+
+typedef struct cube_kv {
+    char key[CUBE_KEY_MAX];  /* upper case */
+    cube_kv_type type;
+    double num;              /* CUBE_KV_NUM, CUBE_KV_BOOL */
+    char str[CUBE_STR_MAX];  /* CUBE_KV_STR */
+    char comment[CUBE_COMMENT_MAX];
+} cube_kv;
+
+typedef struct cube_meta {
+    char date_obs[CUBE_STR_MAX];  /* DATE-OBS, ISO-8601 UTC; "" = absent */
+    double exptime_s;             /* EXPTIME, NAN = absent */
+    char instrume[CUBE_STR_MAX];  /* INSTRUME, "" = absent */
+    char object[CUBE_STR_MAX];    /* OBJECT */
+    char bunit[CUBE_STR_MAX];     /* BUNIT */
+    double plate_scale_arcsec;    /* PLTSCALE [arcsec/pixel], NAN = absent */
+    double wavelength_m;          /* WAVELEN [m], NAN = absent */
+    int nextra;
+    int ndropped;  /* keywords a read could not keep: list full, or a
+                    * value that does not parse (e.g. EXPTIME = 'n/a') */
+    cube_kv extra[CUBE_META_MAX_EXTRA];
+} cube_meta;
+
+/* Everything absent, no extras. */
+void cube_meta_init(cube_meta *m);
+/* Add or replace an extra keyword (key is upper-cased).  SL_EINVAL for a
+ * key that is empty, longer than 8 characters, not [A-Z0-9_-], structural
+ * (NAXIS1, BZERO, ...) or one of the standard fields above (set the field
+ * instead), or a non-finite number; SL_ERANGE when the list is full or the
+ * string is longer than 68 characters.  comment may be NULL; long comments
+ * are cut. */
+int cube_meta_set_num(cube_meta *m, const char *key, double value,
+                      const char *comment);
+int cube_meta_set_str(cube_meta *m, const char *key, const char *value,
+                      const char *comment);
+/* Look up an extra keyword (case-insensitive).  SL_OK, SL_EINVAL when
+ * absent, SL_EDATA when it has the other type (a logical reads as a
+ * number 0/1).  Standard fields are not extras: read them directly. */
+int cube_meta_get_num(const cube_meta *m, const char *key, double *out);
+/* *out points into m (valid while m is unchanged). */
+int cube_meta_get_str(const cube_meta *m, const char *key, const char **out);
+
+/* ---- reading ----------------------------------------------------------- */
+
+enum {
+    /* Return frames containing NaN/Inf as they are instead of failing. */
+    CUBE_ALLOW_NONFINITE = 1u << 0
+};
+
+typedef struct cube_reader cube_reader;
+
+/* Open a sequence.  npaths == 1: a 2-D image or 3-D cube, from the
+ * primary HDU or, when the primary has NAXIS=0, the first image HDU with
+ * data; a path containing * ? or [ is a glob(3) pattern whose matches are
+ * sorted with strcmp (so f2 sorts after f10 unless numbers are padded).
+ * npaths > 1: the files, in order, as one sequence; sizes must agree.
+ * Every file's header is read here (to count frames and check sizes), one
+ * file at a time; frames are read lazily by cube_reader_next.  Metadata
+ * comes from the first file.  A file holding a tile-compressed image
+ * (ZIMAGE = T) is refused with SL_EFORMAT, here and by cube_read_ext:
+ * cfitsio 4.2 crashes on corrupt ones (recon/io/cube_guard.c); funpack such
+ * files first. */
+int cube_reader_open(cube_reader **out, const char *const *paths,
+                     int npaths, unsigned flags, sl_err *err);
+int cube_reader_width(const cube_reader *r);
+int cube_reader_height(const cube_reader *r);
+int cube_reader_nframes(const cube_reader *r);
+const cube_meta *cube_reader_meta(const cube_reader *r);
+/* The largest raw value the first file's integer type can hold (BITPIX 8:
+ * 255; BITPIX 16 with BZERO 32768: 65535; signed 16: 32767), where an ADC
+ * that fills the type saturates; 0 for floating-point data. */
+double cube_reader_code_max(const cube_reader *r);
+/* Read the next frame into frame[width*height].  SL_OK, SL_EEND after the
+ * last frame, or an error (SL_EDATA for NaN/Inf without
+ * CUBE_ALLOW_NONFINITE: the message gives the file, the count and the first
+ * bad pixel as (x, y, frame), 0-based, frame counted within the file;
+ * SL_EFORMAT "truncated" when the file ends before its data).  After
+ * SL_EDATA the bad frame is consumed, so a caller may skip it and go on;
+ * after any other error the position stays (rewind, or give up). */
+int cube_reader_next(cube_reader *r, float *frame);
+/* Start again at frame 0 (closes the current file). */
+void cube_reader_rewind(cube_reader *r);
+const char *cube_reader_errmsg(const cube_reader *r);
+void cube_reader_free(cube_reader *r);
+
+/* Read every frame into a new seq (*out owned by the caller). */
+int cube_read(seq **out, cube_meta *meta_or_NULL, const char *const *paths,
+              int npaths, unsigned flags, sl_err *err);
+/* Read the 2-D image extension named extname (EXTNAME, e.g. "TRUTH") as a
+ * one-frame seq.  NaN/Inf is an SL_EDATA error as for frames. */
+int cube_read_ext(seq **out, const char *path, const char *extname,
+                  sl_err *err);
+
+/* ---- writing ----------------------------------------------------------- */
+
+/* bitpix for cube_writer_open: the FITS values 8 (unsigned byte), 16, 32
+ * (signed), -32, -64, and two unsigned conventions (cfitsio's codes):
+ * BITPIX 16 with BZERO 32768 for 0..65535 camera data, BITPIX 32 with
+ * BZERO 2147483648 for 0..4294967295.  Integer types round half away
+ * from zero (cfitsio alone would truncate). */
+#define CUBE_BITPIX_U16 20
+#define CUBE_BITPIX_U32 40
+
+typedef struct cube_writer cube_writer;
+
+/* Create or overwrite path with an empty cube (NAXIS=3, NAXIS3=0) and its
+ * header: DATE-OBS (now, UTC, if meta has none), then EXPTIME, INSTRUME,
+ * OBJECT, BUNIT, PLTSCALE, WAVELEN when set, then the extras.  meta may be
+ * NULL.  The path is taken literally (no cfitsio "[ext]" or "!" syntax). */
+int cube_writer_open(cube_writer **out, const char *path, int width,
+                     int height, int bitpix, const cube_meta *meta,
+                     sl_err *err);
+/* Append one frame of width*height floats; NAXIS3 then equals the frames
+ * written.  For integer bitpix a NaN/Inf or a value outside the type
+ * (after rounding) is SL_ERANGE and the frame is NOT written. */
+int cube_writer_append(cube_writer *w, const float *frame);
+/* Push header and data to the OS: after this the file on disk is a valid
+ * cube of every frame appended (one header rewrite + fill, cheap). */
+int cube_writer_flush(cube_writer *w);
+/* Append a float32 2-D image extension named extname with meta's keywords
+ * (meta may be NULL).  Call it after the last frame: once an extension
+ * exists cube_writer_append fails with SL_EINVAL (the cube cannot grow
+ * past the extension without rewriting the file). */
+int cube_writer_add_image(cube_writer *w, const char *extname,
+                          const float *img, int width, int height,
+                          const cube_meta *meta_or_NULL);
+int cube_writer_nframes(const cube_writer *w);
+/* Finalise and close; reports any deferred write error (disk full).  The
+ * handle stays valid for errmsg and must still be freed. */
+int cube_writer_close(cube_writer *w);
+const char *cube_writer_errmsg(const cube_writer *w);
+/* Closes if still open (error ignored: call close to see it); NULL ok. */
+void cube_writer_free(cube_writer *w);
+
+/* Write s as a float32 file: NAXIS=2 when s->nframes == 1, else NAXIS=3. */
+int cube_write(const char *path, const seq *s, const cube_meta *meta,
+               sl_err *err);
+
+#endif

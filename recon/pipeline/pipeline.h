@@ -1,0 +1,168 @@
+/* pipeline.h - reconstruct a frame sequence on disk, end to end.
+ *
+ * The one entry point the CLI (`specklab recon`) and the daemon share:
+ * FITS frames in, a centred 2-D image and its header out.  Frames are
+ * streamed (cube_reader), cleaned (prep: sky, NaN/Inf, saturation, bad
+ * pixels) and fed to the chosen estimator:
+ *   direct       pass 1: power spectrum -> measured Fourier support;
+ *                pass 2: direct bispectrum on that support (closure
+ *                triangles with |u2| <= R2), phases by weighted phasor
+ *                recursion, modulus from the bispectrum's own
+ *                photon-corrected power spectrum, or divided by a
+ *                reference (point-source) sequence's; optionally a
+ *                binary fitted to the triples' closure phases (closure.h);
+ *   tsm          Radon projections (spatial, the paper's way), 1-D
+ *                bispectra per angle, filtered back projection;
+ *   tsm-fourier  the same with projection spectra taken as radial slices
+ *                of each frame's 2-D FFT (no spatial Radon);
+ *   auto         a scene probe (probe.h) on the first frames measures the
+ *                speckle cloud, the Fourier support, the image's extent,
+ *                frame quality and SNR, then autoconf.h picks the cheapest
+ *                configuration its calibrated model expects to meet
+ *                target_error (1 - c), with every skip below on.
+ * Skips (issue 6, item 4; PIPE_SKIP_*, each usable with any method): drop
+ * empty/saturated/outlier frames, reconstruct on an FFT-friendly crop
+ * holding the speckle cloud (the result is placed back, centred, in a
+ * frame-sized image), cut TSM's Fourier work at the measured support
+ * radius when that is inside Nyquist, and take TSM's projection count from
+ * the measured extent.  The probed frames are kept in memory and replayed,
+ * so the probe costs no second read; the cropped, kept frames are cached
+ * in memory (up to 128 MB) for the direct method's second pass.  With a
+ * reference sequence there is no crop (the reference's cloud is
+ * elsewhere).  What was measured and chosen goes into the header (RECPRB*,
+ * RECCROP*, RECREJ*, RECSUPP, RECEXTNT, RECSNR, RECSKIPS, RECTGERR,
+ * RECPRED, RECCHOSE).
+ * Photon bias: frames known to be photon counts (SIMPHOT/SIMGAIN in the
+ * header, or the caller's photons_per_frame / adu_per_photon) get
+ * Wirnitzer's unbiased estimators; otherwise the power-spectrum bias is
+ * estimated from the floor beyond the cut-off (direct) or left alone.
+ * Memory: one frame plus the estimator's accumulators, independent of the
+ * number of frames.
+ */
+#ifndef SL_PIPELINE_H
+#define SL_PIPELINE_H
+
+#include "measure/binary.h"
+#include "spectra/closure.h"
+#include "io/cube.h"
+#include "spectra/fringe.h"
+#include "base/status.h"
+
+enum pipeline_method {
+    PIPE_DIRECT = 0, PIPE_TSM = 1, PIPE_TSM_FOURIER = 2, PIPE_AUTO = 3
+};
+
+enum pipeline_skip {
+    PIPE_SKIP_REJECT = 1,   /* drop empty, saturated and outlier frames */
+    PIPE_SKIP_CROP = 2,     /* reconstruct on a crop of the speckle cloud */
+    PIPE_SKIP_SUPPORT = 4,  /* TSM cut-off at the measured support */
+    PIPE_SKIP_ANGLES = 8,   /* TSM projections from the measured extent */
+    PIPE_SKIP_ALL = 15
+};
+
+typedef struct pipeline_opts {
+    int method;               /* enum pipeline_method */
+    int nangles;              /* TSM projections; 0 = 180 */
+    int r2_px;                /* direct: |u2| radius; 0 = 0.14 min(w, h) */
+    int window;               /* POWSPEC_WIN_*; default TUKEY */
+    double tukey_alpha;       /* default 0.25 */
+    int prep;                 /* clean frames first (default 1) */
+    int detect;               /* learn the detector from the raw frames
+                               * (rawstats.h): bad pixels, saturation,
+                               * sky, the cloud (default 1) */
+    int learn_badpix;         /* learn from every frame, not the first 32 */
+    int recentre;             /* recentre frames on the cloud (default 1;
+                               * needs detect) */
+    const char *badpix_path;  /* a bad-pixel map (FITS, nonzero = bad) */
+    double saturation_adu;    /* raw values >= this are repaired; 0 = none */
+    /* Photon statistics: > 0 given; 0 = from the header (SIMPHOT,
+     * SIMGAIN) when present; < 0 = treat the data as not photon counts. */
+    double photons_per_frame;
+    double adu_per_photon;
+    const char *ref_path;     /* point-source reference sequence, or NULL */
+    /* With a reference: the PSF wanted in the result (a 2-D FITS image,
+     * e.g. a cophased point source), or NULL for the object itself
+     * band-limited at the cut-off. */
+    const char *target_path;
+    double wiener;            /* reference regulariser; 0 = default */
+    int nthreads;             /* threads: direct bispectrum, 0 = 2; TSM
+                               * (tsm.h), 0 = online CPUs, at most 4 */
+    int phase_weight;         /* direct: PHASOR_WEIGHT_* of the phase
+                               * recursion and refinement; -1 (default):
+                               * |B| for the recursion, and for the
+                               * refinement SNR on noisy data (pipeline.c) */
+    int refine_iters;         /* direct: least-squares passes after the
+                               * recursion; -1 (default): as its misfit
+                               * asks (phasor.h) */
+    int fftw_measure;         /* 1 = FFTW_MEASURE (default), 0 = ESTIMATE */
+    int skips;                /* PIPE_SKIP_* bits; -1 (default): all of them
+                               * for PIPE_AUTO, none for the other methods */
+    double target_error;      /* auto and PIPE_SKIP_ANGLES: the 1 - c wanted
+                               * against the cophased image; 0: 0.1 */
+    int tsm_inverse;          /* TSM_INV_* (tsm.h); 0: FBP */
+    int tsm_corrected_phases; /* TSM phases from the photon-bias-corrected
+                               * bispectrum, SNR^2-weighted (tsm.h, Bias:
+                               * better dm at >= ~1e4 photons/frame, worse
+                               * below); 0: the raw bispectrum */
+    double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
+                               * support with PIPE_SKIP_SUPPORT */
+    int closure_binary;       /* also fit a binary to the closure phases of
+                               * direct's bispectrum or TSM's 1-D ones
+                               * (closure.h) into the header:
+                               * CPSEP, CPPA, CPDM (+E: 1-sigma errors),
+                               * CPAMBIG, CPNTRI, CPNFREQ, CPRMS, CPSTAT */
+} pipeline_opts;
+
+/* The binary a reconstruction measured (closure_binary), and what the
+ * data support of it (pipeline_binary.c): */
+enum pipeline_binary_status {
+    PIPE_BIN_NONE = 0,      /* not asked for */
+    PIPE_BIN_MEASURED,      /* sep, PA and dm with their errors */
+    PIPE_BIN_AMBIGUOUS,     /* the PA is known modulo 180 deg */
+    PIPE_BIN_UNRESOLVED,    /* no companion above the noise */
+    PIPE_BIN_INCONSISTENT   /* the fits disagree beyond their errors */
+};
+enum pipeline_binary_source {
+    PIPE_BIN_SRC_NONE = 0, PIPE_BIN_SRC_CLOSURE, PIPE_BIN_SRC_IMAGE,
+    PIPE_BIN_SRC_FRINGE
+};
+
+typedef struct pipeline_binary {
+    int status, source;       /* enum pipeline_binary_status, _source */
+    double sep_px, sep_err_px, pa_deg, pa_err_deg, dm_mag, dm_err_mag;
+    char why[96];             /* what keeps it from "measured", or "" */
+    int have_image, have_closure, have_fringe, fringe_ran;
+    binary_result image, closure;     /* binary.h, closure.h */
+    closure_fit_info closure_info;
+    fringe_result fringe;             /* fringe.h */
+} pipeline_binary;
+
+const char *pipeline_binary_status_name(int status);
+const char *pipeline_binary_source_name(int source);
+
+typedef struct pipeline_result {
+    int width, height;        /* the image: same size as a frame */
+    int nframes;              /* frames used */
+    float *image;             /* width*height, object centred at (w/2, h/2) */
+    double elapsed_s;         /* wall time of pipeline_run */
+    double plate_scale_arcsec;/* from the input header; NAN when unknown */
+    cube_meta meta;           /* header for the image (input's + ours) */
+    pipeline_binary binary;   /* with closure_binary; status NONE else */
+} pipeline_result;
+
+void pipeline_opts_defaults(pipeline_opts *o);
+int pipeline_method_parse(const char *name, int *method);
+const char *pipeline_method_name(int method);
+/* "crop,reject,support,angles", "all" or "none" -> PIPE_SKIP_* bits. */
+int pipeline_skips_parse(const char *list, int *skips);
+/* The bits as that list (buf of n >= 32 chars). */
+void pipeline_skips_name(int skips, char *buf, int n);
+
+/* Reconstruct paths[0..npaths) (a cube, a frame, or a list/glob of frames,
+ * as cube_reader_open takes them).  On success out owns the image: free it
+ * with pipeline_result_clear.  Errors name the file and the stage. */
+int pipeline_run(const char *const *paths, int npaths,
+                 const pipeline_opts *o, pipeline_result *out, sl_err *err);
+void pipeline_result_clear(pipeline_result *r);
+
+#endif

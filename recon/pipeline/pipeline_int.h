@@ -1,0 +1,117 @@
+/* pipeline_int.h - internals shared by pipeline.c (the estimators) and
+ * pipeline_selection.c (the scene probe, frame selection and crop of issue 6
+ * item 4).  Not a public header. */
+#ifndef SL_PIPELINE_INT_H
+#define SL_PIPELINE_INT_H
+
+#include "autoconf.h"
+#include "spectra/bispec.h"
+#include "io/cube.h"
+#include "pipeline.h"
+#include "prep.h"
+#include "probe.h"
+#include "rawstats.h"
+#include "tsm/tsm.h"
+
+typedef int (*add_fn)(void *h, const float *frame);
+
+/* One input sequence being streamed: reader, cleaning, frame buffer.
+ * With a probe (the skips), frames are selected and cropped: w x h is the
+ * crop, fw x fh the frame (see skip_feed). */
+typedef struct stream {
+    cube_reader *rd;
+    prep *pp;
+    float *frame;
+    int w, h, n;
+    probe *pb;            /* NULL: every frame, whole */
+    int fw, fh;
+    float *sel;           /* one cropped frame */
+    float *cache;         /* the kept crops, when they fit; else NULL */
+    int ncache, ncache_max, passes;
+    /* Frames are multiplied by scale on reading (stream_next): a power of
+     * two, 1 unless the first frame's peak lies outside 2^-24..2^24, when
+     * it brings the peak to [0.5, 1).  Why: the bispectra are triple
+     * products in float (|B| ~ peak^3 N^3), so data in other units (pixels
+     * of 1e-40 or 1e28) would underflow or overflow; a power of two is
+     * exact, so the result is the same image, scaled back by 1/scale.
+     * Quantities in ADU (saturation, read noise, ADU per photon) are scaled
+     * with the frames. */
+    double scale;
+    rawstats_result det;  /* what the raw frames said (det_learnt) */
+    int det_learnt;
+} stream;
+
+/* Open paths for streaming; with o->prep, frames are cleaned as the
+ * options and the detector learnt from the raw frames say
+ * (pipeline_stream.c). */
+int stream_open(stream *s, const char *const *paths, int npaths,
+                const pipeline_opts *o, sl_err *err);
+void stream_close(stream *s);
+/* The cleaning and the detector learnt, as PREP* and DET* keywords. */
+void stream_describe(const stream *s, cube_meta *m);
+
+/* Read the next frame of s into s->frame, scaled; cube_reader_next's
+ * status (SL_EEND at the end). */
+int stream_next(stream *s);
+/* Feed every (cleaned) frame of s to add(h, frame).  Cost: one read and
+ * one prep per frame; allocation-free. */
+int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
+
+/* Photon statistics (pipeline_photons.c).  stream_photon_stats: photons
+ * per frame and g (ADU per photon, in s's scaled units) from the options,
+ * else the header (SIMPHOT/SIMGAIN; a camera's GAIN alone: the photons
+ * are the cleaned frames' mean flux over g, one extra read of the cube);
+ * both 0 when unknown or when the caller says the frames are not photon
+ * counts.  *src says where they came from (PHOT_*, header RECPHSRC).  A
+ * photon count without a gain leaves g = 0 (sequence_powspec measures it).
+ * stream_read_noise_adu: the read noise per pixel in s's scaled units, 0
+ * when unknown or when the frames are not photon counts. */
+enum { PHOT_NONE, PHOT_OPTION, PHOT_SIMPHOT, PHOT_GAIN };
+int stream_photon_stats(stream *s, const pipeline_opts *o, double *photons,
+                        double *g, int *src, sl_err *err);
+double stream_read_noise_adu(const stream *s, double photons);
+
+/* The PIPE_SKIP_* bits a run applies (o->skips, or its default). */
+int skip_effective(const pipeline_opts *o);
+/* Probe the first frames of s (read and cleaned once, kept for replay),
+ * then set up selection and crop (s->w x s->h becomes the crop) and, for
+ * PIPE_AUTO or the TSM skips, choose the configuration: eo is o with the
+ * choice applied, ch what autoconf chose.  photons (per frame) is scaled
+ * to the flux inside the crop. */
+int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
+               pipeline_opts *eo, autoconf_choice *ch, double *photons,
+               sl_err *err);
+/* stream_feed for a probed stream: the first pass replays the probed
+ * frames and reads on; later passes come from the cache of kept crops, or
+ * read again (same verdicts).  Rejected frames are never fed. */
+int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
+/* Frames fed per pass (the kept ones). */
+int skip_nkept(const stream *s);
+/* The header keywords of the probe, the skips and the choice. */
+void skip_describe(const stream *s, const pipeline_opts *o, int skips,
+                   const autoconf_choice *ch, cube_meta *m);
+/* A crop-sized image placed, centred, in a new frame-sized one: *img is
+ * replaced (and freed). */
+int skip_place(const stream *s, float **img, sl_err *err);
+
+/* What the binary measurement sees (pipeline_binary.c): the estimator's
+ * spectra (direct: b and the 2-D power spectrum; TSM: t and its polar
+ * power spectra), their white-noise level and frame count. */
+typedef struct pipe_binary_in {
+    bispec *b;
+    tsm *t;
+    const double *ps2d;      /* w x h, FFT order, bias subtracted */
+    double rcut_px;
+    const double *ps_polar;  /* tsm_power's layout */
+    int nang, nf, nproj;
+    double noise, nframes;
+} pipe_binary_in;
+
+/* Measure the binary on img (w x h, the estimator's own size) with every
+ * fit and judge what the data support (pipeline.h, pipeline_binary). */
+void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
+                         int h, pipeline_binary *r);
+/* MEAS*, FR* and CP* keywords. */
+void pipe_binary_describe(const pipeline_binary *r, cube_meta *m);
+
+#endif

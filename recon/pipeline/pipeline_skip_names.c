@@ -1,0 +1,52 @@
+/* pipeline_skip_names.c - the names of the pipeline's skips (PIPE_SKIP_*):
+ * parse a list and print one.  Apart from pipeline_selection.c so that a
+ * configuration reader (specklabd's) can check a skips list without
+ * linking the estimators. */
+#include <stdio.h>
+#include <string.h>
+
+#include "pipeline.h"
+
+static const struct {
+    const char *name;
+    int bit;
+} skip_names[] = {{"reject", PIPE_SKIP_REJECT}, {"crop", PIPE_SKIP_CROP},
+                  {"support", PIPE_SKIP_SUPPORT}, {"angles", PIPE_SKIP_ANGLES}};
+
+int pipeline_skips_parse(const char *list, int *skips)
+{
+    *skips = 0;
+    if (!strcmp(list, "none"))
+        return SL_OK;
+    if (!strcmp(list, "all")) {
+        *skips = PIPE_SKIP_ALL;
+        return SL_OK;
+    }
+    const char *p = list;
+    while (*p) {
+        size_t len = strcspn(p, ",");
+        int found = 0;
+        for (size_t i = 0; i < sizeof skip_names / sizeof skip_names[0]; i++)
+            if (len == strlen(skip_names[i].name) &&
+                !strncmp(p, skip_names[i].name, len)) {
+                *skips |= skip_names[i].bit;
+                found = 1;
+            }
+        if (!found)
+            return SL_EINVAL;
+        p += len + (p[len] == ',');
+    }
+    return SL_OK;
+}
+
+void pipeline_skips_name(int skips, char *buf, int n)
+{
+    int used = 0;
+    buf[0] = 0;
+    for (size_t i = 0; i < sizeof skip_names / sizeof skip_names[0]; i++)
+        if ((skips & skip_names[i].bit) && used < n)
+            used += snprintf(buf + used, (size_t)(n - used), "%s%s",
+                             used ? "," : "", skip_names[i].name);
+    if (!used)
+        snprintf(buf, (size_t)n, "none");
+}

@@ -1,0 +1,393 @@
+/* tsm.c - tomographic speckle masking, see tsm.h.
+ *
+ * Costs measured on one core (200^2, nproj 200: J = 100, 2500 pairs per
+ * angle, 100 frames, warm FFTW plans): TSM-180 Fourier ~140 ms CPU (2-D
+ * FFTs 17 ms, slice taps 15 ms, bispectrum sums 34 ms, phases 42 ms of a
+ * ~50 ms tsm_result); TSM-18 ~32 ms without reading and prep (FFTs 9 ms,
+ * taps 8 ms, sums 4 ms, tsm_result 5 ms); see tsm.h for the cost model.
+ * The spatial path adds ~3.5 ms per frame at 180 angles (radon_spatial.h;
+ * on `threads` cores), plus ~30 ms in tsm_new for its noise transfer.
+ * Memory at TSM-180: 7 MB of bispectrum sums, 5 MB of blocks (two of 8
+ * frames and their slices), 1.6 MB of FFT scratch per thread, ~2 MB in the
+ * radon handle.
+ */
+#include "tsm.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "spectra/closure.h"
+#include "base/rng.h"
+#include "tsm_int.h"
+
+
+void tsm_opts_default(tsm_opts *o) { memset(o, 0, sizeof *o); }
+
+const char *tsm_errmsg(const tsm *t) { return t ? t->err.msg : ""; }
+int tsm_nangles(const tsm *t) { return t->nang; }
+int tsm_nproj(const tsm *t) { return t->ns; }
+int tsm_nfreq(const tsm *t) { return t->nf; }
+int tsm_npairs(const tsm *t) { return t->np; }
+int tsm_nframes(const tsm *t) { return t->nframes; }
+void tsm_arc(const tsm *t, double *arc_bins, double *extent_px)
+{
+    *arc_bins = t->arc, *extent_px = t->extent;
+}
+
+void tsm_free(tsm *t)
+{
+    if (!t)
+        return;
+    tsm_accum_free(t->acc);
+    tpool_free(t->pool);
+    radon_free(t->rad);
+    tsm_phase_free(t->ph);
+    void *m[] = {t->proj, t->pr, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
+                 t->tr, t->pw};
+    for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)
+        free(m[i]);
+    free(t);
+}
+
+void tsm_reset(tsm *t)
+{
+    tsm_accum_reset(t->acc);
+    t->nframes = 0;
+    t->have_result = 0;
+}
+
+/* Add the buffered frames; the sums' pointers are fixed, this makes their
+ * contents current. */
+void tsm_sync_sums(tsm *t)
+{
+    const tsm_sums *s = tsm_accum_sums(t->acc);
+    t->bre = s->bre, t->bim = s->bim, t->ps = s->ps, t->mre = s->mre, t->mim = s->mim;
+}
+
+/* The spatial projector's white-noise transfer T(a, u) = E|P(u)|^2 /
+ * (w h sigma^2).  For white noise E p(s) p(s') depends on the rays' shared
+ * pixels only, zero beyond |s - s'| = 2 px (a pixel feeds the rays within
+ * sqrt 2 px of it), so T is exactly R(0) + 2 sum_{d=1,2} R(d) cos(2 pi u
+ * d / ns) with R(d) = sum_s E p(s) p(s + d).  R is estimated from nt
+ * projections of unit white noise (fixed seed: the same T every time),
+ * nt = 8 (200 / side)^2 within [8, 64] for ~3 x 10^5 ray samples, and
+ * averaged over the angles the pixel lattice maps onto each other
+ * (theta, 180 - theta, 90 +- theta): the floor level then comes out within
+ * ~1%.  Cost: nt spatial projections (~30 ms at 128^2 or 200^2, 180
+ * angles). */
+enum { NT_LAG = 2 };
+
+static int noise_transfer(tsm *t, sl_err *err)
+{
+    size_t npix = (size_t)t->w * t->h;
+    int ns = t->ns, nf = t->nf, K = t->nang, st = SL_OK, L1 = NT_LAG + 1;
+    int nt = (int)ceil(8 * 200.0 * 200.0 / (double)npix);
+    nt = nt < 8 ? 8 : nt > 64 ? 64 : nt;
+    float *img = malloc(npix * sizeof *img);
+    double *r = calloc((size_t)K * L1, sizeof *r);
+    t->tr = malloc((size_t)K * nf * sizeof *t->tr);
+    if (!img || !r || !t->tr) {
+        st = sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory");
+        goto free_scratch;
+    }
+    rng g;
+    rng_init(&g, 0x7534d, 0);
+    for (int m = 0; m < nt; m++) {
+        for (size_t i = 0; i < npix; i++)
+            img[i] = (float)rng_normal(&g);
+        if ((st = radon_project(t->rad, img, t->proj)) != SL_OK) {
+            sl_seterr(err, st, "tsm_new: %s", radon_errmsg(t->rad));
+            goto free_scratch;
+        }
+        for (int a = 0; a < K; a++) {
+            const float *p = t->proj + (size_t)a * ns;
+            for (int d = 0; d < L1; d++)
+                for (int s = 0; s < ns; s++)
+                    r[a * L1 + d] += (double)p[s] * p[(s + d) % ns];
+        }
+    }
+    for (int a = 0; a < K; a++) {
+        /* the orbit of theta_a under the lattice's reflections */
+        int orb[4] = {a, (K - a) % K, -1, -1}, no = 2;
+        if (K % 2 == 0)
+            orb[2] = ((K / 2 - a) % K + K) % K, orb[3] = (K / 2 + a) % K, no = 4;
+        for (int u = 0; u < nf; u++) {
+            double v = 0;
+            for (int k = 0; k < no; k++) {
+                const double *ra = r + orb[k] * L1;
+                v += ra[0];
+                for (int d = 1; d < L1; d++)
+                    v += 2 * ra[d] * cos(2 * M_PI * u * d / ns);
+            }
+            t->tr[(size_t)a * nf + u] = v / (no * nt * (double)npix);
+        }
+    }
+free_scratch:
+    free(img);
+    free(r);
+    return st;
+}
+
+tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
+{
+    tsm_opts o;
+    if (opts)
+        o = *opts;
+    else
+        tsm_opts_default(&o);
+    int nang = o.nangles ? o.nangles : 180;
+    int ns = o.nproj ? o.nproj : (w > h ? w : h);
+    ns += ns & 1;
+    double cut = o.cutoff_cyc_px > 0 ? o.cutoff_cyc_px : 0.5;
+    int J = (int)floor(cut * ns + 1e-9);
+    if (J > ns / 2)
+        J = ns / 2;
+    int batch = o.batch ? o.batch : 8;
+    if (w < 8 || h < 8 || nang < 1 || J < 3 || o.r2_bins < 0 || batch < 1 ||
+        batch > 1024 || o.threads < 0 || o.threads > 64 ||
+        o.variant < TSM_FOURIER || o.variant > TSM_SPATIAL ||
+        !(o.photons_per_frame >= 0) || !(o.read_noise_adu >= 0) ||
+        o.bias < TSM_BIAS_AUTO || o.bias > TSM_BIAS_FLOOR ||
+        (o.bias == TSM_BIAS_PHOTON && !(o.photons_per_frame > 0))) {
+        sl_seterr(err, SL_EINVAL,
+                  "tsm_new: bad parameters (%dx%d, %d angles, cut-off %d bins, "
+                  "r2 %d, batch %d, %d threads, variant %d, bias %d with %g photons, "
+                  "read noise %g)", w, h, nang, J, o.r2_bins, batch, o.threads, (int)o.variant,
+                  (int)o.bias, o.photons_per_frame, o.read_noise_adu);
+        return NULL;
+    }
+    tsm *t = calloc(1, sizeof *t);
+    if (!t) {
+        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory");
+        return NULL;
+    }
+    t->w = w, t->h = h, t->nang = nang, t->ns = ns, t->nf = J + 1;
+    t->o = o;
+    radon_opts ro;
+    radon_opts_default(&ro);
+    ro.nproj = ns;
+    ro.nfreq = t->nf;
+    ro.oversamp = o.oversamp;
+    ro.kernel_bins = o.kernel_bins;
+    ro.window = o.window;
+    ro.window_cut_cyc_px = (double)J / ns;
+    ro.spatial = o.variant == TSM_SPATIAL;
+    ro.threads = o.threads > 0 ? o.threads : tpool_default_threads();
+    ro.fftw_flags = o.fftw_flags;
+    t->rad = radon_new(w, h, nang, &ro, err);
+    if (!t->rad)
+        goto fail_free;
+    t->ph = tsm_phase_new(nang, t->nf, o.r2_bins, err);
+    if (!t->ph)
+        goto fail_free;
+    t->np = tsm_phase_npairs(t->ph);
+    t->off = tsm_phase_rowoff(t->ph);
+    t->len = tsm_phase_rowlen(t->ph);
+    if (!(t->pool = tpool_new(o.threads, err)))
+        goto fail_free;
+    if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK) {
+        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
+        goto fail_free;
+    }
+    t->acc = tsm_accum_new(o.variant == TSM_FOURIER ? t->rad : NULL, w, h, nang, t->nf,
+                           t->off, t->len, t->np, batch, t->pool, err);
+    if (!t->acc)
+        goto fail_free;
+    tsm_sync_sums(t);
+    size_t nb = (size_t)nang * t->np, nsp = (size_t)nang * t->nf;
+    t->proj = malloc((size_t)nang * ns * sizeof *t->proj);
+    t->pr = malloc(2 * t->nf * sizeof *t->pr);
+    t->ref = malloc(nsp * sizeof *t->ref);
+    t->tgt = malloc(nsp * sizeof *t->tgt);
+    t->phase = calloc(nsp, sizeof *t->phase);
+    t->psc = malloc(nsp * sizeof *t->psc);
+    t->ospec = calloc(nsp, sizeof *t->ospec);
+    t->sref = calloc(nsp, sizeof *t->sref);
+    t->pw = malloc(nsp * sizeof *t->pw);
+    if (!t->proj || !t->pr || !t->ref || !t->tgt || !t->phase || !t->psc ||
+        !t->ospec || !t->sref || !t->pw) {
+        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (%zu bispectrum elements)", nb);
+        goto fail_free;
+    }
+    if (o.variant == TSM_SPATIAL && o.bias != TSM_BIAS_NONE &&
+        noise_transfer(t, err) != SL_OK)
+        goto fail_free;
+    tsm_reset(t);
+    return t;
+fail_free:
+    tsm_free(t);
+    return NULL;
+}
+
+/* dst = src (dst may be NULL: scan only); 1 if every pixel is finite.  x * 0
+ * is 0 unless x is NaN or Inf: a branch-free scan on 8 chains, fused with
+ * the copy into the block so the frame is read once (blocks of 8: the
+ * compiler vectorises them). */
+static int copy_finite(float *restrict dst, const float *restrict src, size_t n)
+{
+    float z[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8)
+        for (int k = 0; k < 8; k++)
+            z[k] += src[i + k] * 0.0f;
+    for (; i < n; i++)
+        z[0] += src[i] * 0.0f;
+    if (dst)
+        memcpy(dst, src, n * sizeof *src);
+    float s = 0;
+    for (int k = 0; k < 8; k++)
+        s += z[k];
+    return s == 0.0f;
+}
+
+int tsm_add(tsm *t, const float *frame)
+{
+    size_t npix = (size_t)t->w * t->h, i;
+    int fourier = t->o.variant == TSM_FOURIER;
+    /* Fourier: straight into the accumulator's block, sliced there */
+    if (!copy_finite(fourier ? tsm_accum_frame_slot(t->acc) : NULL, frame, npix)) {
+        for (i = 0; i < npix && isfinite(frame[i]); i++)
+            ;
+        return sl_seterr(&t->err, SL_EDATA, "tsm_add: frame %d pixel (%zu, %zu) is not finite",
+                         t->nframes, i % t->w, i / t->w);
+    }
+    if (fourier)
+        tsm_accum_commit_frame(t->acc);
+    else {
+        int st = radon_project(t->rad, frame, t->proj);
+        if (st == SL_OK)
+            st = radon_proj_to_spec(t->rad, t->proj, tsm_accum_slot(t->acc));
+        if (st != SL_OK)
+            return sl_seterr(&t->err, st, "tsm_add: %s", radon_errmsg(t->rad));
+        tsm_accum_commit(t->acc);
+    }
+    t->nframes++;
+    t->have_result = 0;   /* the spatial path reused t->proj */
+    return SL_OK;
+}
+
+/* Mean frame sum, the photon gain g (0 unless photons are known and the
+ * mode corrects) and the white-noise level L of the bias mode (tsm.h). */
+void tsm_bias_terms(const tsm *t, double *sbar, double *g, double *level)
+{
+    double s = 0, n = t->nframes, ph = t->o.photons_per_frame;
+    for (int a = 0; a < t->nang; a++)
+        s += t->mre[(size_t)a * t->nf];
+    *sbar = s / t->nang / n;
+    tsm_bias mode = t->o.bias;
+    if (mode == TSM_BIAS_AUTO)
+        mode = ph > 0 ? TSM_BIAS_PHOTON : TSM_BIAS_FLOOR;
+    *g = mode != TSM_BIAS_NONE && ph > 0 ? *sbar / ph : 0.0;
+    *level = 0;
+    if (mode == TSM_BIAS_PHOTON) {
+        double rn = t->o.read_noise_adu;
+        *level = *g * *sbar + (double)t->w * t->h * rn * rn;
+    } else if (mode == TSM_BIAS_FLOOR) {
+        /* sum |P|^2 / sum T over the outer shells: linear in the sums */
+        int J = t->nf - 1, j0 = J - (J / 16 > 2 ? J / 16 : 2) + 1;
+        double num = 0, den = 0;
+        for (int a = 0; a < t->nang; a++)
+            for (int j = j0; j <= J; j++) {
+                size_t i = (size_t)a * t->nf + j;
+                num += t->ps[i], den += t->tr ? t->tr[i] : 1.0;
+            }
+        *level = den > 0 ? num / n / den : 0.0;
+    }
+}
+
+/* Mean power at i minus its non-photon white part (level - g <S>, e.g.
+ * read noise): the |P|^2 of Wirnitzer's terms, which are photon bias only
+ * (Gaussian noise adds nothing to the bispectrum). */
+double tsm_photon_power(const tsm *t, size_t i, double sbar, double g, double lv)
+{
+    double white = lv - g * sbar;
+    return t->ps[i] / t->nframes - (white > 0 ? white : 0) * (t->tr ? t->tr[i] : 1.0);
+}
+
+int tsm_noise_level(tsm *t, double *level)
+{
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_noise_level: no frames");
+    tsm_sync_sums(t);
+    double sbar, g;
+    tsm_bias_terms(t, &sbar, &g, level);
+    return SL_OK;
+}
+
+int tsm_power(tsm *t, double *ps)
+{
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_power: no frames");
+    tsm_sync_sums(t);
+    double sbar, g, lv;
+    tsm_bias_terms(t, &sbar, &g, &lv);
+    for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)
+        ps[i] = t->ps[i] / t->nframes - lv * (t->tr ? t->tr[i] : 1.0);
+    return SL_OK;
+}
+
+int tsm_mean_projection(tsm *t, float *proj)
+{
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_mean_projection: no frames");
+    tsm_sync_sums(t);
+    for (size_t i = 0; i < (size_t)t->nang * t->nf; i++)   /* sref: scratch */
+        t->sref[i] = CMPLXF((float)(t->mre[i] / t->nframes), (float)(t->mim[i] / t->nframes));
+    int st = radon_spec_to_proj(t->rad, t->sref, proj);
+    return st ? sl_seterr(&t->err, st, "tsm_mean_projection: %s", radon_errmsg(t->rad)) : SL_OK;
+}
+
+/* Element q of angle k's row (pair u1, u2) of the mean bispectrum,
+ * photon-bias-corrected when the gain g is known (Wirnitzer, 1-D). */
+static void corrected_at(const tsm *t, int k, int u1, int u2, double sbar,
+                         double g, double lv, double *re, double *im)
+{
+    double n = t->nframes;
+    size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1, i = (size_t)k * t->nf;
+    *re = t->bre[q] / n + 2 * g * g * sbar;
+    if (g > 0)
+        *re -= g * (tsm_photon_power(t, i + u1, sbar, g, lv) + tsm_photon_power(t, i + u2, sbar, g, lv) +
+                    tsm_photon_power(t, i + u1 + u2, sbar, g, lv));
+    *im = t->bim[q] / n;
+}
+
+int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
+{
+    if (k < 0 || k >= t->nang || u1 < 1 || u1 >= t->nf - 1 || u2 < 1 ||
+        u2 > t->len[u1])
+        return sl_seterr(&t->err, SL_ERANGE, "tsm_bispectrum: (%d, %d, %d) not stored", k, u1, u2);
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_bispectrum: no frames");
+    tsm_sync_sums(t);
+    double sbar, g, lv;
+    tsm_bias_terms(t, &sbar, &g, &lv);
+    corrected_at(t, k, u1, u2, sbar, g, lv, re, im);
+    return SL_OK;
+}
+
+int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
+               closure_fit_info *info)
+{
+    if (!t || !init || !out)
+        return sl_seterr(t ? &t->err : NULL, SL_EINVAL, "tsm_binary: NULL argument");
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_binary: no frames");
+    size_t n = (size_t)t->nang * t->np;
+    double *b = malloc(2 * n * sizeof *b);
+    if (!b)
+        return sl_seterr(&t->err, SL_ENOMEM, "tsm_binary: out of memory");
+    tsm_sync_sums(t);
+    double sbar, g, lv;
+    tsm_bias_terms(t, &sbar, &g, &lv);
+    for (int k = 0; k < t->nang; k++)
+        for (int u1 = 1; u1 < t->nf; u1++)
+            for (int u2 = 1; u2 <= t->len[u1]; u2++) {
+                size_t q = (size_t)k * t->np + t->off[u1] + u2 - 1;
+                corrected_at(t, k, u1, u2, sbar, g, lv, &b[q], &b[n + q]);
+            }
+    int rc = closure_fit_binary_1d(t->nang, t->nf, t->ns, t->off, t->len,
+                                   t->np, b, b + n, 0, init, out, info, &t->err);
+    free(b);
+    return rc;
+}

@@ -77,8 +77,8 @@ void bcli_print_scaling(GArray *rows);
  * (block 2 rows). */
 void bcli_print_paper(GArray *rows);
 
-/* The speed targets (issue 3: TSM-180 <= 1 s, direct R2 = 28 <= 5 s,
- * peak <= 256 MB; issue 6: TSM-180 <= 0.2 s, TSM-18 <= 0.03 s, direct
+/* The speed targets (loose: TSM-180 <= 1 s, direct R2 = 28 <= 5 s,
+ * peak <= 256 MB; tight: TSM-180 <= 0.2 s, TSM-18 <= 0.03 s, direct
  * <= 2 s) against the 200^2, 100-frame binary rows. */
 void bcli_print_targets(GArray *rows);
 

@@ -1,5 +1,5 @@
 /* bench_skips.c - `specklab bench --skips-report`: what each skip of
- * issue 6 item 4 saves and costs, and where auto lands (bench_cli.h).
+ * saves and costs, and where auto lands (bench_cli.h).
  *
  * Data sets (100 frames of 200^2, binary 6 lambda/D, dm 1, noiseless
  * unless noted), each chosen to exercise one skip:
@@ -104,7 +104,7 @@ void bcli_print_skips(GArray *rows)
 {
     static const char *names[] = {"reject", "crop", "support", "angles"};
     int shown[64], ns = 0;
-    printf("\n# Skips (issue 6 item 4): each on/off, median wall and CPU time, "
+    printf("\n# Skips: each on/off, median wall and CPU time, "
            "error against the cophased image\n");
     for (guint i = 0; i < rows->len; i++) {
         const bcli_row *d = &g_array_index(rows, bcli_row, i);

@@ -20,7 +20,7 @@
  *                frame quality and SNR, then autoconf.h picks the cheapest
  *                configuration its calibrated model expects to meet
  *                target_error (1 - c), with every skip below on.
- * Skips (issue 6, item 4; PIPE_SKIP_*, each usable with any method): drop
+ * Skips (PIPE_SKIP_*, each usable with any method): drop
  * empty/saturated/outlier frames, reconstruct on an FFT-friendly crop
  * holding the speckle cloud (the result is placed back, centred, in a
  * frame-sized image), cut TSM's Fourier work at the measured support

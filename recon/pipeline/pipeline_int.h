@@ -1,6 +1,5 @@
 /* pipeline_int.h - internals shared by pipeline.c (the estimators) and
- * pipeline_selection.c (the scene probe, frame selection and crop of issue 6
- * item 4).  Not a public header. */
+ * pipeline_selection.c (the scene probe, frame selection and crop).  Not a public header. */
 #ifndef SL_PIPELINE_INT_H
 #define SL_PIPELINE_INT_H
 

@@ -1,4 +1,4 @@
-/* pipeline_selection.c - the skips of pipeline.h (issue 6, item 4): the scene
+/* pipeline_selection.c - the skips of pipeline.h: the scene
  * probe on the first frames, frame selection, the crop, its cache, and
  * putting the result back into a frame-sized image.  See pipeline_int.h.
  *
@@ -150,7 +150,7 @@ void skip_describe(const stream *s, const pipeline_opts *o, int skips,
 {
     char buf[64];
     pipeline_skips_name(skips, buf, sizeof buf);
-    cube_meta_set_str(m, "RECSKIPS", buf, "skips applied (issue 6 item 4)");
+    cube_meta_set_str(m, "RECSKIPS", buf, "skips applied");
     probe_describe(s->pb, m);
     if (!ch->chosen)
         return;

@@ -1,5 +1,5 @@
 /* probe.h - measure a speckle scene on its first frames, so that the
- * reconstruction can skip what the scene does not need (issue 6, item 4).
+ * reconstruction can skip what the scene does not need.
  *
  * The probe sees the first nframes cleaned frames of a sequence (probe_add
  * keeps them, so the reconstruction replays them from memory instead of

@@ -21,34 +21,68 @@ typedef struct recon_args {
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
 
-/* The scene probe's numbers and the choice (pipeline.h), as recorded in
- * the header: JSON member name, keyword. */
-static const char *const probe_keys[][2] = {
-    {"probed_frames", "RECPRBN"}, {"crop_x", "RECCROPX"}, {"crop_y", "RECCROPY"},
-    {"crop_width", "RECCROPW"}, {"crop_height", "RECCROPH"},
-    {"cloud_radius_px", "RECCLOUD"}, {"cloud_level", "RECCLEVL"},
-    {"crop_flux_fraction", "RECCFLUX"}, {"support_cyc_px", "RECSUPP"},
-    {"support_fraction", "RECSFRAC"}, {"extent_px", "RECEXTNT"}, {"snr", "RECSNR"},
-    {"rejected", "RECREJ"}, {"rejected_empty", "RECREJE"},
-    {"rejected_saturated", "RECREJS"}, {"rejected_flux", "RECREJF"},
-    {"rejected_sharpness", "RECREJQ"}, {"reject_mad", "RECREJK"},
-    {"target_error", "RECTGERR"}, {"predicted_error", "RECPRED"},
-    {"predicted_cpu_s", "RECPCOST"}};
-
-static void probe_json(JsonBuilder *b, const cube_meta *m)
+/* The scene probe's numbers and the choice (pipeline.h's report). */
+static void probe_json(JsonBuilder *b, const pipeline_probe_report *p)
 {
-    const char *str;
-    if (cube_meta_get_str(m, "RECSKIPS", &str) != SL_OK)
+    if (!p->probed)
         return;
-    cli_json_str(b, "skips", str);
-    if (cube_meta_get_str(m, "RECCHOSE", &str) == SL_OK)
-        cli_json_str(b, "chosen", str);
+    char skips[64];
+    pipeline_skips_name(p->skips, skips, sizeof skips);
+    cli_json_str(b, "skips", skips);
+    if (p->chosen)
+        cli_json_str(b, "chosen", p->chosen_label);
     json_builder_set_member_name(b, "scene");
     json_builder_begin_object(b);
-    double v;
-    for (size_t i = 0; i < sizeof probe_keys / sizeof probe_keys[0]; i++)
-        if (cube_meta_get_num(m, probe_keys[i][1], &v) == SL_OK)
-            cli_json_num(b, probe_keys[i][0], v);
+    cli_json_num(b, "probed_frames", p->probed);
+    cli_json_num(b, "crop_x", p->crop_x0);
+    cli_json_num(b, "crop_y", p->crop_y0);
+    cli_json_num(b, "crop_width", p->crop_w);
+    cli_json_num(b, "crop_height", p->crop_h);
+    cli_json_num(b, "cloud_radius_px", p->cloud_radius_px);
+    cli_json_num(b, "cloud_level", p->cloud_level);
+    cli_json_num(b, "crop_flux_fraction", p->crop_flux_frac);
+    if (p->spectrum) {
+        cli_json_num(b, "support_cyc_px", p->support_cyc_px);
+        cli_json_num(b, "support_fraction", p->support_frac);
+        cli_json_num(b, "extent_px", p->extent_px);
+        cli_json_num(b, "snr", p->snr);
+    }
+    cli_json_num(b, "rejected", p->rejected[1] + p->rejected[2] + p->rejected[3] + p->rejected[4]);
+    cli_json_num(b, "rejected_empty", p->rejected[1]);
+    cli_json_num(b, "rejected_saturated", p->rejected[2]);
+    cli_json_num(b, "rejected_flux", p->rejected[3]);
+    cli_json_num(b, "rejected_sharpness", p->rejected[4]);
+    cli_json_num(b, "reject_mad", p->reject_mad);
+    if (p->chosen) {
+        cli_json_num(b, "target_error", p->target_error);
+        cli_json_num(b, "predicted_error", p->pred_error);
+        cli_json_num(b, "predicted_cpu_s", p->pred_cost_s);
+    }
+    json_builder_end_object(b);
+}
+
+/* The estimator's parameters (pipeline.h's report). */
+static void parameters_json(JsonBuilder *b, const pipeline_opts *o,
+                            const pipeline_report *p)
+{
+    json_builder_set_member_name(b, "parameters");
+    json_builder_begin_object(b);
+    if (p->method == PIPE_DIRECT) {
+        cli_json_num(b, "R2", p->r2_px);
+        cli_json_num(b, "RCUT", p->rcut_px);
+        cli_json_num(b, "NTRI", (double)p->ntriples);
+        cli_json_num(b, "GAIN", p->gain_adu / p->scale);
+        cli_json_num(b, "MISF", p->misfit);
+    } else {
+        cli_json_num(b, "NANG", p->nangles);
+        cli_json_num(b, "NPAIR", p->npairs);
+        cli_json_num(b, "CUT", p->cutoff_cyc_px);
+        cli_json_str(b, "TPHAS", p->corrected_phases ? "corrected" : "raw");
+        cli_json_str(b, "TINV", p->inverse == TSM_INV_ITER ? "iterative" : "fbp");
+    }
+    cli_json_num(b, "PHOT", p->photons);
+    cli_json_str(b, "PHSRC", pipeline_photon_source_name(p->photon_source));
+    cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
     json_builder_end_object(b);
 }
 
@@ -60,27 +94,10 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         json_builder_begin_object(b);
         cli_json_str(b, "input", input);
         cli_json_str(b, "output", a->out);
-        const char *ran = pipeline_method_name(o->method);
-        cube_meta_get_str(&r->meta, "RECMETH", &ran);
-        cli_json_str(b, "method", ran);
+        cli_json_str(b, "method", pipeline_method_name(r->report.method));
         cli_json_str(b, "requested", pipeline_method_name(o->method));
-        json_builder_set_member_name(b, "parameters");
-        json_builder_begin_object(b);
-        double v;
-        static const char *keys[] = {"RECNANG", "RECR2", "RECRCUT", "RECNTRI",
-                                     "RECNPAIR", "RECPHOT", "RECGAIN", "RECCUT"};
-        for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
-            if (cube_meta_get_num(&r->meta, keys[i], &v) == SL_OK)
-                cli_json_num(b, keys[i] + 3, v); /* "NANG", "R2", ... */
-        /* where the photon count came from, and what TSM ran */
-        static const char *skeys[] = {"RECPHSRC", "RECTPHAS", "RECTINV"};
-        const char *sv;
-        for (size_t i = 0; i < sizeof skeys / sizeof skeys[0]; i++)
-            if (cube_meta_get_str(&r->meta, skeys[i], &sv) == SL_OK)
-                cli_json_str(b, skeys[i] + 3, sv); /* "PHSRC", "TPHAS", "TINV" */
-        cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
-        json_builder_end_object(b);
-        probe_json(b, &r->meta);
+        parameters_json(b, o, &r->report);
+        probe_json(b, &r->report.probe);
         binmeas_json(b, &r->binary, r->plate_scale_arcsec);
         json_builder_set_member_name(b, "frames");
         json_builder_add_int_value(b, r->nframes);
@@ -95,30 +112,22 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
         cli_print_json(b);
         g_object_unref(b);
     } else if (!a->quiet) {
-        const char *ran = pipeline_method_name(o->method), *chosen = NULL;
-        cube_meta_get_str(&r->meta, "RECMETH", &ran);
+        const pipeline_report *p = &r->report;
         printf("%s: %s of %d frames (%dx%d) -> %s in %.3f s, peak %.0f MB\n",
-               input, ran, r->nframes, r->width, r->height, a->out,
-               r->elapsed_s, cli_peak_rss_mb());
-        double phot;
-        const char *src;
-        if (cube_meta_get_num(&r->meta, "RECPHOT", &phot) == SL_OK && phot > 0 &&
-            cube_meta_get_str(&r->meta, "RECPHSRC", &src) == SL_OK)
-            printf("  photon bias: %.0f photons/frame (from %s)\n", phot,
-                   !strcmp(src, "GAIN") ? "GAIN and the mean flux" : src);
-        double cw, ch, rej, pred;
-        if (cube_meta_get_num(&r->meta, "RECCROPW", &cw) == SL_OK &&
-            cube_meta_get_num(&r->meta, "RECCROPH", &ch) == SL_OK &&
-            cube_meta_get_num(&r->meta, "RECREJ", &rej) == SL_OK)
-            printf("  skips: reconstructed on %.0fx%.0f, %.0f frame(s) rejected\n",
-                   cw, ch, rej);
-        double target = 0.1;
-        if (cube_meta_get_str(&r->meta, "RECCHOSE", &chosen) == SL_OK &&
-            cube_meta_get_num(&r->meta, "RECPRED", &pred) == SL_OK) {
-            cube_meta_get_num(&r->meta, "RECTGERR", &target);
-            printf("  chosen: %s (predicted 1 - c %.3f%s)\n", chosen, pred,
-                   pred > target ? ", above the target: no configuration is expected to meet it" : "");
-        }
+               input, pipeline_method_name(p->method), r->nframes, r->width,
+               r->height, a->out, r->elapsed_s, cli_peak_rss_mb());
+        if (p->photons > 0)
+            printf("  photon bias: %.0f photons/frame (from %s)\n", p->photons,
+                   p->photon_source == PIPE_PHOT_GAIN ? "GAIN and the mean flux"
+                   : pipeline_photon_source_name(p->photon_source));
+        const pipeline_probe_report *q = &p->probe;
+        if (q->probed)
+            printf("  skips: reconstructed on %dx%d, %d frame(s) rejected\n", q->crop_w,
+                   q->crop_h, q->rejected[1] + q->rejected[2] + q->rejected[3] + q->rejected[4]);
+        if (q->chosen)
+            printf("  chosen: %s (predicted 1 - c %.3f%s)\n", q->chosen_label, q->pred_error,
+                   q->pred_error > q->target_error
+                       ? ", above the target: no configuration is expected to meet it" : "");
         binmeas_print(&r->binary, r->plate_scale_arcsec);
     }
 }
@@ -212,9 +221,7 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
         fprintf(stderr, "specklab recon: %s\n", e.msg);
         return 1;
     }
-    const char *ph;
-    if (o.tsm_corrected_phases && cube_meta_get_str(&r.meta, "RECTPHAS", &ph) == SL_OK &&
-        strcmp(ph, "corrected") != 0)
+    if (o.tsm_corrected_phases && r.report.method != PIPE_DIRECT && !r.report.corrected_phases)
         fprintf(stderr, "specklab recon: warning: --tsm-phases corrected needs photon "
                 "statistics (header SIMPHOT or --photons); the phases are raw\n");
     seq img = {r.width, r.height, 1, r.image};

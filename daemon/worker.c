@@ -185,9 +185,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     if (po.method != PIPE_DIRECT) {   /* pipeline.h: 0 means 180 */
         proto_add_int(b, "projections", po.nangles > 0 ? po.nangles : 180);
         /* what ran: corrected needs the cube's photon statistics */
-        const char *ph = NULL;
-        cube_meta_get_str(&res.meta, "RECTPHAS", &ph);
-        proto_add_str(b, "tsm_phases", ph ? ph : "raw");
+        proto_add_str(b, "tsm_phases", res.report.corrected_phases ? "corrected" : "raw");
     }
     proto_add_bool(b, "prep", po.prep);
     char skips[64];

@@ -121,26 +121,23 @@ static void child_main(int fd, const char *cube, const pipeline_opts *o,
         rep->width = r.width;
         rep->height = r.height;
         rep->nframes = r.nframes;
-        rep->r2_px = rep->nangles = rep->ntriples = NAN;
-        rep->crop_px = rep->cutoff = rep->rejected = rep->pred = NAN;
-        cube_meta_get_num(&r.meta, "RECR2", &rep->r2_px);
-        cube_meta_get_num(&r.meta, "RECNANG", &rep->nangles);
-        cube_meta_get_num(&r.meta, "RECNTRI", &rep->ntriples);
-        cube_meta_get_num(&r.meta, "RECCROPW", &rep->crop_px);
-        cube_meta_get_num(&r.meta, "RECCUT", &rep->cutoff);
-        cube_meta_get_num(&r.meta, "RECREJ", &rep->rejected);
-        cube_meta_get_num(&r.meta, "RECPRED", &rep->pred);
-        rep->cp_sep = rep->cp_pa = rep->cp_dm = NAN;
-        cube_meta_get_num(&r.meta, "CPSEP", &rep->cp_sep);
-        cube_meta_get_num(&r.meta, "CPPA", &rep->cp_pa);
-        cube_meta_get_num(&r.meta, "CPDM", &rep->cp_dm);
-        const char *str = NULL;
-        rep->method_run = -1;
-        if (cube_meta_get_str(&r.meta, "RECMETH", &str) == SL_OK)
-            pipeline_method_parse(str, &rep->method_run);
-        rep->chosen[0] = 0;
-        if (cube_meta_get_str(&r.meta, "RECCHOSE", &str) == SL_OK)
-            snprintf(rep->chosen, sizeof rep->chosen, "%s", str);
+        /* what ran, typed (pipeline.h's report): NAN where it does not apply */
+        const pipeline_report *p = &r.report;
+        int direct = p->method == PIPE_DIRECT, probed = p->probe.probed > 0;
+        rep->r2_px = direct ? p->r2_px : NAN;
+        rep->ntriples = direct ? (double)p->ntriples : NAN;
+        rep->nangles = direct ? NAN : p->nangles;
+        rep->cutoff = direct ? NAN : p->cutoff_cyc_px;
+        rep->crop_px = probed ? p->probe.crop_w : NAN;
+        rep->rejected = probed ? p->probe.rejected[1] + p->probe.rejected[2] +
+                                 p->probe.rejected[3] + p->probe.rejected[4] : NAN;
+        rep->pred = p->probe.chosen ? p->probe.pred_error : NAN;
+        const pipeline_binary *v = &r.binary;
+        rep->cp_sep = v->have_closure ? v->closure.sep_px : NAN;
+        rep->cp_pa = v->have_closure ? v->closure.pa_deg : NAN;
+        rep->cp_dm = v->have_closure ? v->closure.dm_mag : NAN;
+        rep->method_run = p->method;
+        snprintf(rep->chosen, sizeof rep->chosen, "%s", p->probe.chosen ? p->probe.chosen_label : "");
         copy_verdict(&r.binary, &rep->binary);
     }
     int bad = write_all(fd, rep, sizeof *rep);

@@ -147,8 +147,8 @@ static double support_snr(const double *ps, const unsigned char *support,
 }
 
 static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
-                      double photons, double g, float *img, cube_meta *m,
-                      pipeline_binary *bin, sl_err *err)
+                      double photons, double g, float *img, pipeline_report *rep,
+                              pipeline_binary *bin, sl_err *err)
 {
     size_t n = (size_t)s->w * s->h;
     double *ps = malloc(n * sizeof *ps), *ps_ref = NULL, *mod = NULL;
@@ -232,14 +232,14 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         pipe_binary_in bi = {.b = b, .ps2d = ps, .rcut_px = rcut, .noise = noise,
                              .nframes = bispec_nframes(b)};
         pipe_binary_measure(&bi, img, s->w, s->h, bin);
-        pipe_binary_describe(bin, m);
     }
-    cube_meta_set_num(m, "RECR2", bo.r2_px, "[px] bispectrum |u2| radius");
-    cube_meta_set_num(m, "RECRCUT", rcut, "[px] measured Fourier cut-off");
-    cube_meta_set_num(m, "RECNTRI", (double)bispec_ntriples(b), "closure triangles stored");
-    cube_meta_set_num(m, "RECMISF", bispec_misfit(b), "phase recursion's closure misfit");
-    cube_meta_set_num(m, "RECSNRPS", support_snr(ps, support, n, noise), "power-spectrum SNR over the support");
-    cube_meta_set_num(m, "RECGAIN", g, "[adu/photon] photon-bias gain, 0 = floor");
+    rep->window = o->window;
+    rep->r2_px = bo.r2_px;
+    rep->rcut_px = rcut;
+    rep->ntriples = (long)bispec_ntriples(b);
+    rep->misfit = bispec_misfit(b);
+    rep->support_snr = support_snr(ps, support, n, noise);
+    rep->gain_adu = g;
 free_all:
     bispec_free(b);
     free(ps);
@@ -289,8 +289,8 @@ static int tsm_target_power(const char *path, const tsm_opts *to, int w,
 
 /* The binary measured on TSM's result: its polar power spectra carry the
  * fringes (pipeline_binary.c). */
-static int tsm_binary_keys(tsm *t, const float *img, int w, int h,
-                           pipeline_binary *bin, cube_meta *m, sl_err *err)
+static int tsm_measure_binary(tsm *t, const float *img, int w, int h,
+                              pipeline_binary *bin, sl_err *err)
 {
     size_t np = (size_t)tsm_nangles(t) * tsm_nfreq(t);
     double *ps = malloc(np * sizeof *ps), level = 0;
@@ -303,13 +303,12 @@ static int tsm_binary_keys(tsm *t, const float *img, int w, int h,
                          .nproj = tsm_nproj(t), .noise = level,
                          .nframes = tsm_nframes(t)};
     pipe_binary_measure(&bi, img, w, h, bin);
-    pipe_binary_describe(bin, m);
     free(ps);
     return SL_OK;
 }
 
 static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
-                   double photons, float *img, cube_meta *m,
+                   double photons, float *img, pipeline_report *rep,
                    pipeline_binary *bin, sl_err *err)
 {
     tsm_opts to;
@@ -365,49 +364,22 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         sl_seterr(err, rc, "%s", tsm_errmsg(t));
         goto free_all;
     }
-    if (o->closure_binary && (rc = tsm_binary_keys(t, img, s->w, s->h, bin, m, err)) != SL_OK)
+    if (o->closure_binary && (rc = tsm_measure_binary(t, img, s->w, s->h, bin, err)) != SL_OK)
         goto free_all;
-    cube_meta_set_num(m, "RECNANG", tsm_nangles(t), "TSM projection angles");
-    cube_meta_set_num(m, "RECCUT", (double)(tsm_nfreq(t) - 1) / tsm_nproj(t),
-                      "[cyc/px] TSM cut-off");
-    cube_meta_set_num(m, "RECNPAIR", tsm_npairs(t), "1-D bispectrum pairs per angle");
-    cube_meta_set_str(m, "RECTINV", to.inverse == TSM_INV_ITER ? "iterative" : "fbp",
-                      "TSM inverse: filtered back projection or iterative");
-    cube_meta_set_str(m, "RECTPHAS", corrected ? "corrected" : "raw",
-                      "TSM phases: raw or photon-bias-corrected bispectrum");
-    double arc, ext;
-    tsm_arc(t, &arc, &ext);
-    cube_meta_set_num(m, "RECARC", arc, "[bins] TSM bispectrum angular average");
-    cube_meta_set_num(m, "RECTEXT", ext, "[px] TSM object diameter capping RECARC");
-    double level = 0;
-    tsm_noise_level(t, &level);
-    cube_meta_set_str(m, "RECBIAS", photons > 0 ? "photon" : "floor",
-                      "TSM white-noise bias: photon count or measured floor");
-    cube_meta_set_num(m, "RECNOISE", level, "TSM white-noise power subtracted");
+    rep->nangles = tsm_nangles(t);
+    rep->cutoff_cyc_px = (double)(tsm_nfreq(t) - 1) / tsm_nproj(t);
+    rep->npairs = tsm_npairs(t);
+    rep->inverse = to.inverse;
+    rep->corrected_phases = corrected;
+    tsm_arc(t, &rep->arc_bins, &rep->tsm_extent_px);
+    rep->bias_photon = photons > 0;
+    tsm_noise_level(t, &rep->noise_level);
 free_all:
     tsm_free(t);
     tsm_free(tr);
     free(ps_ref);
     free(ps_tgt);
     return rc;
-}
-
-/* The output header: the input's keywords plus what was done. */
-static void describe(const pipeline_opts *o, const stream *s, double photons,
-                     cube_meta *m)
-{
-    *m = *cube_reader_meta(s->rd);
-    cube_meta_set_str(m, "RECMETH", pipeline_method_name(o->method),
-                      "reconstruction method");
-    cube_meta_set_num(m, "RECNFRM", s->n, "frames reconstructed");
-    cube_meta_set_num(m, "RECPHOT", photons, "photons/frame for bias, 0 = unknown");
-    cube_meta_set_str(m, "RECREF", o->ref_path ? o->ref_path : "none",
-                      "reference (point-source) sequence");
-    if (o->method == PIPE_DIRECT)
-        cube_meta_set_str(m, "RECWIN", o->window == POWSPEC_WIN_NONE ? "none" :
-                          o->window == POWSPEC_WIN_HANN ? "hann" : "tukey",
-                          "frame apodisation");
-    stream_describe(s, m);
 }
 
 int pipeline_run(const char *const *paths, int npaths,
@@ -450,19 +422,18 @@ int pipeline_run(const char *const *paths, int npaths,
         rc = sl_seterr(err, SL_ENOMEM, "out of memory");
         goto close_ref;
     }
-    describe(&eo, &s, photons, &out->meta);
-    static const char *phsrc_names[] = {"none", "option", "SIMPHOT", "GAIN"};
-    cube_meta_set_str(&out->meta, "RECPHSRC", phsrc_names[phsrc],
-                      "RECPHOT from: option, SIMPHOT, or GAIN and the flux");
+    pipeline_report *rep = &out->report;
+    rep->method = eo.method;
+    rep->nframes_in = s.n;
+    rep->photons = photons;
+    rep->photon_source = phsrc;
+    rep->scale = s.scale;
     rc = eo.method == PIPE_DIRECT
-             ? run_direct(&s, refp, &eo, photons, g, out->image, &out->meta, &out->binary, err)
-             : run_tsm(&s, refp, &eo, photons, out->image, &out->meta, &out->binary, err);
-    if (rc == SL_OK && s.scale != 1.0) {
+             ? run_direct(&s, refp, &eo, photons, g, out->image, rep, &out->binary, err)
+             : run_tsm(&s, refp, &eo, photons, out->image, rep, &out->binary, err);
+    if (rc == SL_OK && s.scale != 1.0)
         for (size_t i = 0, n = (size_t)s.w * s.h; i < n; i++)
             out->image[i] = (float)(out->image[i] / s.scale);
-        cube_meta_set_num(&out->meta, "RECSCALE", s.scale,
-                          "frames x this (power of 2) for the float sums");
-    }
     if (rc == SL_OK && s.pb)
         rc = skip_place(&s, &out->image, err);
     if (rc != SL_OK) {
@@ -470,17 +441,18 @@ int pipeline_run(const char *const *paths, int npaths,
         goto close_ref;
     }
     out->nframes = s.n;
+    stream_report(&s, rep);
     if (s.pb) {
-        skip_describe(&s, o, skips, &ch, &out->meta);
+        skip_report(&s, o, skips, &ch, &rep->probe);
         out->nframes = skip_nkept(&s);
-        cube_meta_set_num(&out->meta, "RECNFRM", out->nframes, "frames reconstructed");
         s.w = s.fw, s.h = s.fh;
     }
     out->width = s.w;
     out->height = s.h;
     out->plate_scale_arcsec = cube_reader_meta(s.rd)->plate_scale_arcsec;
     out->elapsed_s = now_s() - t0;
-    cube_meta_set_num(&out->meta, "RECTIME", out->elapsed_s, "[s] reconstruction wall time");
+    if ((rc = pipeline_describe(&eo, cube_reader_meta(s.rd), out, err)) != SL_OK)
+        pipeline_result_clear(out);
 close_ref:
     if (refp)
         stream_close(refp);

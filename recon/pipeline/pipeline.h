@@ -140,13 +140,86 @@ typedef struct pipeline_binary {
 const char *pipeline_binary_status_name(int status);
 const char *pipeline_binary_source_name(int source);
 
+/* What a run measured and chose, typed: pipeline_run fills it and writes
+ * the image's keywords from it, in one place (pipeline_describe.c);
+ * nobody needs to parse them back.  Fields that do not apply are 0. */
+enum pipeline_photon_source {
+    PIPE_PHOT_NONE = 0, PIPE_PHOT_OPTION, PIPE_PHOT_SIMPHOT, PIPE_PHOT_GAIN
+};
+
+typedef struct pipeline_prep_report {   /* the cleaning (prep.h) */
+    int on;                   /* frames were cleaned at all */
+    int dark, flat;           /* 1: subtracted, divided */
+    int sky;                  /* 0 none, 1 border median, 2 sky-mask mean,
+                               * 3 none because a dark was given */
+    int border_px;            /* the border band of the median */
+    double saturation_adu;    /* raw values >= this repaired; 0: none */
+    int nbad;                 /* pixels in the bad-pixel map */
+    int recentred;            /* frames shifted onto the cloud */
+} pipeline_prep_report;
+
+typedef struct pipeline_detector_report { /* learnt from raw frames */
+    int learnt, nframes;      /* frames it learnt from */
+    int nstuck, nhot, ndead;  /* bad pixels found, repaired */
+    double sat_level_adu;     /* 0: no clip level found */
+    int sat_source;           /* 0 none, 1 file type, 2 ADC 2^k-1, 3 flat top */
+    double quantum_adu;       /* the data's step; 0 real-valued */
+    double sky_adu, sky_rms_adu; /* raw sky level and temporal rms */
+    double cx_px, cy_px;      /* the cloud's raw centre (0-based) */
+} pipeline_detector_report;
+
+typedef struct pipeline_probe_report {  /* the skips and auto */
+    int skips;                /* PIPE_SKIP_* applied */
+    int probed;               /* frames probed; 0: no probe ran */
+    int crop_x0, crop_y0, crop_w, crop_h;
+    double cloud_radius_px, cloud_level, crop_flux_frac;
+    int spectrum;             /* the next four were measured */
+    double support_cyc_px, support_frac, extent_px, snr;
+    int rejected[5];          /* kept, empty, saturated, flux, sharpness */
+    double reject_mad;        /* k of median +- k MAD; < 0 keep all */
+    int chosen;               /* auto chose what follows */
+    char chosen_label[64];
+    double target_error, pred_error, pred_cost_s;
+} pipeline_probe_report;
+
+typedef struct pipeline_report {
+    int method;               /* what ran: auto's choice applied */
+    int nframes_in;           /* frames in the sequence */
+    double photons;           /* per frame for the bias; 0 unknown */
+    int photon_source;        /* enum pipeline_photon_source */
+    double scale;             /* frames x this (power of 2) for the sums */
+    /* direct */
+    int window;               /* POWSPEC_WIN_* */
+    int r2_px;
+    double rcut_px;           /* measured Fourier cut-off */
+    long ntriples;            /* closure triangles stored */
+    double gain_adu;          /* photon-bias gain; 0 = floor */
+    double misfit;            /* phase recursion's closure misfit */
+    double support_snr;       /* power-spectrum SNR over the support */
+    /* TSM */
+    int nangles, npairs;
+    double cutoff_cyc_px;
+    int inverse;              /* TSM_INV_* */
+    int corrected_phases;     /* phases from the corrected bispectrum */
+    double arc_bins, tsm_extent_px;
+    int bias_photon;          /* white-noise bias from photons, not floor */
+    double noise_level;
+    pipeline_prep_report prep;
+    pipeline_detector_report detector;
+    pipeline_probe_report probe;
+} pipeline_report;
+
+const char *pipeline_photon_source_name(int source);
+
 typedef struct pipeline_result {
     int width, height;        /* the image: same size as a frame */
     int nframes;              /* frames used */
     float *image;             /* width*height, object centred at (w/2, h/2) */
     double elapsed_s;         /* wall time of pipeline_run */
     double plate_scale_arcsec;/* from the input header; NAN when unknown */
-    cube_meta meta;           /* header for the image (input's + ours) */
+    cube_meta meta;           /* header for the image (input's + ours),
+                               * written from report and binary */
+    pipeline_report report;   /* what was measured and chosen */
     pipeline_binary binary;   /* with closure_binary; status NONE else */
 } pipeline_result;
 

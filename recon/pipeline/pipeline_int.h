@@ -46,8 +46,8 @@ typedef struct stream {
 int stream_open(stream *s, const char *const *paths, int npaths,
                 const pipeline_opts *o, sl_err *err);
 void stream_close(stream *s);
-/* The cleaning and the detector learnt, as PREP* and DET* keywords. */
-void stream_describe(const stream *s, cube_meta *m);
+/* The cleaning and the detector learnt, for the report. */
+void stream_report(const stream *s, pipeline_report *r);
 
 /* Read the next frame of s into s->frame, scaled; cube_reader_next's
  * status (SL_EEND at the end). */
@@ -86,9 +86,9 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
 int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* Frames fed per pass (the kept ones). */
 int skip_nkept(const stream *s);
-/* The header keywords of the probe, the skips and the choice. */
-void skip_describe(const stream *s, const pipeline_opts *o, int skips,
-                   const autoconf_choice *ch, cube_meta *m);
+/* The probe, the skips and the choice, for the report. */
+void skip_report(const stream *s, const pipeline_opts *o, int skips,
+                 const autoconf_choice *ch, pipeline_probe_report *r);
 /* A crop-sized image placed, centred, in a new frame-sized one: *img is
  * replaced (and freed). */
 int skip_place(const stream *s, float **img, sl_err *err);
@@ -110,7 +110,11 @@ typedef struct pipe_binary_in {
  * fit and judge what the data support (pipeline.h, pipeline_binary). */
 void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
                          int h, pipeline_binary *r);
-/* MEAS*, FR* and CP* keywords. */
-void pipe_binary_describe(const pipeline_binary *r, cube_meta *m);
+/* Every keyword of the image header from the typed result, in one place
+ * (pipeline_describe.c): the input's keywords (in), then REC*, PREP*,
+ * DET*, MEAS*, FR*, CP*.  SL_ERANGE naming the first keyword that did not
+ * fit. */
+int pipeline_describe(const pipeline_opts *o, const cube_meta *in,
+                      pipeline_result *r, sl_err *err);
 
 #endif

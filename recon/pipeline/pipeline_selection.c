@@ -145,21 +145,19 @@ int skip_nkept(const stream *s)
     return c[PROBE_KEEP];
 }
 
-void skip_describe(const stream *s, const pipeline_opts *o, int skips,
-                   const autoconf_choice *ch, cube_meta *m)
+void skip_report(const stream *s, const pipeline_opts *o, int skips,
+                 const autoconf_choice *ch, pipeline_probe_report *r)
 {
-    char buf[64];
-    pipeline_skips_name(skips, buf, sizeof buf);
-    cube_meta_set_str(m, "RECSKIPS", buf, "skips applied");
-    probe_describe(s->pb, m);
+    memset(r, 0, sizeof *r);
+    r->skips = skips;
+    probe_report_fill(s->pb, r);
     if (!ch->chosen)
         return;
-    cube_meta_set_num(m, "RECTGERR", o->target_error > 0 ? o->target_error : 0.1,
-                      "target error 1 - c of the model");
-    cube_meta_set_num(m, "RECPRED", ch->pred_error, "model's predicted 1 - c");
-    cube_meta_set_num(m, "RECPCOST", ch->pred_cost, "[s] model's predicted CPU time");
-    autoconf_label(ch, buf, sizeof buf);
-    cube_meta_set_str(m, "RECCHOSE", buf, "configuration chosen");
+    r->chosen = 1;
+    r->target_error = o->target_error > 0 ? o->target_error : 0.1;
+    r->pred_error = ch->pred_error;
+    r->pred_cost_s = ch->pred_cost;
+    autoconf_label(ch, r->chosen_label, sizeof r->chosen_label);
 }
 
 int skip_place(const stream *s, float **img, sl_err *err)

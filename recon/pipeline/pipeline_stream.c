@@ -183,23 +183,23 @@ int stream_feed(stream *s, add_fn add, void *h, const char *what,
     return SL_OK;
 }
 
-void stream_describe(const stream *s, cube_meta *m)
+void stream_report(const stream *s, pipeline_report *r)
 {
+    memset(&r->prep, 0, sizeof r->prep);
+    memset(&r->detector, 0, sizeof r->detector);
     if (s->pp)
-        prep_describe(s->pp, m);
+        prep_report_fill(s->pp, &r->prep);
     if (!s->det_learnt)
         return;
-    static const char *src[] = {"none", "type", "adc", "flat-top"};
     const rawstats_result *d = &s->det;
-    cube_meta_set_num(m, "DETNFRM", d->nframes, "raw frames the detector was learnt from");
-    cube_meta_set_num(m, "DETSTUCK", d->nstuck, "stuck pixels found (repaired)");
-    cube_meta_set_num(m, "DETHOT", d->nhot, "hot pixels found (repaired)");
-    cube_meta_set_num(m, "DETDEAD", d->ndead, "dead pixels found (repaired)");
-    cube_meta_set_num(m, "DETSAT", d->sat_level / s->scale, "[adu] saturation level found, 0 = none");
-    cube_meta_set_str(m, "DETSATSR", src[d->sat_source], "saturation from: type, adc, flat-top");
-    cube_meta_set_num(m, "DETQUANT", d->quantum / s->scale, "[adu] data step, 0 = real-valued");
-    cube_meta_set_num(m, "DETSKY", d->sky_level / s->scale, "[adu] raw sky level");
-    cube_meta_set_num(m, "DETSKYRM", d->sky_rms / s->scale, "[adu] sky temporal rms");
-    cube_meta_set_num(m, "DETCX", d->cx_px, "[px] raw cloud centre x (0-based)");
-    cube_meta_set_num(m, "DETCY", d->cy_px, "[px] raw cloud centre y (0-based)");
+    pipeline_detector_report *o = &r->detector;
+    o->learnt = 1;
+    o->nframes = d->nframes;
+    o->nstuck = d->nstuck, o->nhot = d->nhot, o->ndead = d->ndead;
+    o->sat_level_adu = d->sat_level / s->scale;
+    o->sat_source = d->sat_source;
+    o->quantum_adu = d->quantum / s->scale;
+    o->sky_adu = d->sky_level / s->scale;
+    o->sky_rms_adu = d->sky_rms / s->scale;
+    o->cx_px = d->cx_px, o->cy_px = d->cy_px;
 }

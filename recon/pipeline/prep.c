@@ -438,23 +438,16 @@ int prep_frame(prep *p, float *f, prep_stats *st)
     return SL_OK;
 }
 
-void prep_describe(const prep *p, cube_meta *m)
+void prep_report_fill(const prep *p, pipeline_prep_report *r)
 {
-    static const char *sky[] = {"auto", "none", "border"};
-    static const char *win[] = {"none", "hann", "tukey"};
-    cube_meta_set_num(m, "PREPDARK", p->dark != NULL, "1 = dark/bias subtracted");
-    cube_meta_set_num(m, "PREPFLAT", p->invflat != NULL, "1 = flat-fielded");
-    cube_meta_set_str(m, "PREPSKY",
-                      p->o.sky == PREP_SKY_AUTO ? (p->dark ? "none (dark given)" : "border median")
-                                                : sky[p->o.sky],
-                      "sky estimate subtracted per frame");
-    cube_meta_set_num(m, "PREPBORD", p->o.border_px, "[px] sky border band");
-    cube_meta_set_num(m, "PREPSAT", p->o.saturation_adu, "[adu] saturation, 0 = none");
-    cube_meta_set_num(m, "PREPNBAD", p->nbad, "pixels in the bad-pixel map");
-    cube_meta_set_str(m, "PREPWIN", win[p->o.window], "apodisation window");
-    cube_meta_set_num(m, "PREPCENT", p->shifted != NULL, "1 = frames recentred on the cloud");
-    if (p->skyidx)
-        cube_meta_set_str(m, "PREPSKY", "sky-mask mean", "sky estimate subtracted per frame");
-    if (p->o.window == PREP_WIN_TUKEY)
-        cube_meta_set_num(m, "PREPALPH", p->o.tukey_alpha, "Tukey taper fraction");
+    memset(r, 0, sizeof *r);
+    r->on = 1;
+    r->dark = p->dark != NULL;
+    r->flat = p->invflat != NULL;
+    r->sky = p->o.sky == PREP_SKY_NONE ? 0 : p->skyidx ? 2
+           : p->o.sky == PREP_SKY_AUTO && p->dark ? 3 : 1;
+    r->border_px = p->o.border_px;
+    r->saturation_adu = p->o.saturation_adu;
+    r->nbad = p->nbad;
+    r->recentred = p->shifted != NULL;
 }

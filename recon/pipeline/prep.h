@@ -28,8 +28,7 @@
  * single clipped peak); a plateau of them keeps the clip level, the best
  * lower bound there is, where its neighbours' median would be sky.
  * The bad-pixel map comes from rawstats.h (learnt from the raw frames),
- * a map file or prep_mark_bad.  prep_describe writes every choice into a
- * header.
+ * a map file or prep_mark_bad.  prep_report_fill says what it does.
  * Cost: O(pixels) per frame, plus O(bad pixels * 9).  No allocation after
  * prep_new.
  */
@@ -39,6 +38,7 @@
 #include <stdint.h>
 
 #include "io/cube.h"
+#include "pipeline.h"
 #include "base/status.h"
 
 typedef struct prep prep;
@@ -90,8 +90,7 @@ int prep_frame(prep *p, float *frame, prep_stats *stats);
 /* The apodisation window (w*h, 1 where flat), for callers that must
  * account for it (e.g. photon-noise bias: sum of window^2). */
 const float *prep_window(const prep *p);
-/* Record the choices (PREPDARK, PREPFLAT, PREPSKY, PREPBORD, PREPSAT,
- * PREPNBAD, PREPWIN, PREPALPH, PREPCENT) in a header. */
-void prep_describe(const prep *p, cube_meta *m);
+/* What the cleaning does, for the pipeline's report (pipeline.h). */
+void prep_report_fill(const prep *p, pipeline_prep_report *r);
 
 #endif

@@ -570,32 +570,21 @@ void probe_place(const probe_scene *sc, const float *crop, float *full)
                sizeof(float) * cw);
 }
 
-void probe_describe(const probe *p, cube_meta *m)
+void probe_report_fill(const probe *p, pipeline_probe_report *r)
 {
     const probe_scene *sc = &p->sc;
-    cube_meta_set_num(m, "RECPRBN", sc->nprobed, "frames the scene probe measured");
-    cube_meta_set_num(m, "RECCROPX", sc->crop_x0, "[px] crop origin x (0-based)");
-    cube_meta_set_num(m, "RECCROPY", sc->crop_y0, "[px] crop origin y (0-based)");
-    cube_meta_set_num(m, "RECCROPW", sc->crop_w, "[px] reconstructed crop width");
-    cube_meta_set_num(m, "RECCROPH", sc->crop_h, "[px] reconstructed crop height");
-    cube_meta_set_num(m, "RECCLOUD", sc->cloud_radius_px[sc->crop_level],
-                      "[px] speckle cloud radius at the crop's level");
-    cube_meta_set_num(m, "RECCLEVL", cloud_levels[sc->crop_level],
-                      "cloud edge, x long-exposure profile peak");
-    cube_meta_set_num(m, "RECCFLUX", sc->crop_flux_frac, "long-exposure flux inside the crop");
-    if (p->o.spectrum) {
-        cube_meta_set_num(m, "RECSUPP", sc->support_cyc_px, "[cyc/px] measured Fourier support radius");
-        cube_meta_set_num(m, "RECSFRAC", sc->support_frac, "fraction of the crop's frequencies in the support");
-        cube_meta_set_num(m, "RECEXTNT", sc->extent_px, "[px] image diameter (autocorrelation)");
-        cube_meta_set_num(m, "RECSNR", sc->snr, "probe SNR: sqrt(support power / noise)");
-    }
-    int rej = 0;
-    for (int v = 1; v < PROBE_NVERDICT; v++)
-        rej += p->counts[v];
-    cube_meta_set_num(m, "RECREJ", rej, "frames rejected (sum of RECREJ*)");
-    cube_meta_set_num(m, "RECREJE", p->counts[PROBE_EMPTY], "rejected: empty");
-    cube_meta_set_num(m, "RECREJS", p->counts[PROBE_SATURATED], "rejected: saturated");
-    cube_meta_set_num(m, "RECREJF", p->counts[PROBE_FLUX], "rejected: flux beyond median +- k MAD");
-    cube_meta_set_num(m, "RECREJQ", p->counts[PROBE_SHARP], "rejected: sharpness beyond median +- k MAD");
-    cube_meta_set_num(m, "RECREJK", p->o.reject_mad, "rejection threshold k (MAD)");
+    r->probed = sc->nprobed;
+    r->crop_x0 = sc->crop_x0, r->crop_y0 = sc->crop_y0;
+    r->crop_w = sc->crop_w, r->crop_h = sc->crop_h;
+    r->cloud_radius_px = sc->cloud_radius_px[sc->crop_level];
+    r->cloud_level = cloud_levels[sc->crop_level];
+    r->crop_flux_frac = sc->crop_flux_frac;
+    r->spectrum = p->o.spectrum;
+    r->support_cyc_px = sc->support_cyc_px;
+    r->support_frac = sc->support_frac;
+    r->extent_px = sc->extent_px;
+    r->snr = sc->snr;
+    for (int v = 0; v < PROBE_NVERDICT && v < 5; v++)
+        r->rejected[v] = p->counts[v];
+    r->reject_mad = p->o.reject_mad;
 }

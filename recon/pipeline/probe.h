@@ -42,6 +42,7 @@
 #define SL_PROBE_H
 
 #include "io/cube.h"
+#include "pipeline.h"
 #include "prep.h"
 #include "base/status.h"
 
@@ -133,7 +134,7 @@ const char *probe_verdict_name(int v);
 
 /* Copy a crop_w x crop_h image, centred, into a zeroed w x h image. */
 void probe_place(const probe_scene *sc, const float *crop, float *full);
-/* Record the scene and the rejections (RECPRB*, RECREJ*, RECCROP*). */
-void probe_describe(const probe *p, cube_meta *m);
+/* The scene, the crop and the rejections, for the pipeline's report. */
+void probe_report_fill(const probe *p, pipeline_probe_report *r);
 
 #endif

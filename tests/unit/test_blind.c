@@ -224,6 +224,51 @@ TEST(a258_methods_agree_or_say_so)
         }
 }
 
+/* The header keeps every keyword the help and README promise, written
+ * from the typed result (pipeline_describe.c): auto with every skip and
+ * --binary sets the most. */
+TEST(every_promised_keyword_is_written)
+{
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.photons = 2e4, s.gain_e_per_adu = 2, s.read_noise_e = 3, s.bias_adu = 100;
+    s.adc_bits = 12, s.hot_pixels = 3;
+    s.blind = 1;
+    blind_cube c;
+    sl_err e;
+    CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.method = PIPE_AUTO;
+    o.skips = PIPE_SKIP_ALL;
+    o.closure_binary = 1;
+    o.fftw_measure = 0;
+    pipeline_result r;
+    const char *paths[] = {c.path};
+    CHECK(pipeline_run(paths, 1, &o, &r, &e) == SL_OK, "%s", e.msg);
+    static const char *keys[] = {
+        "RECMETH", "RECNFRM", "RECPHOT", "RECPHSRC", "RECREF", "RECTIME", "RECSKIPS",
+        "RECPRBN", "RECCROPX", "RECCROPY", "RECCROPW", "RECCROPH", "RECCLOUD",
+        "RECSUPP", "RECEXTNT", "RECSNR", "RECREJ", "RECREJE", "RECREJS", "RECREJF",
+        "RECREJQ", "RECREJK", "RECTGERR", "RECPRED", "RECPCOST", "RECCHOSE",
+        "PREPSKY", "PREPSAT", "PREPNBAD", "PREPCENT", "DETNFRM", "DETSTUCK", "DETSAT",
+        "DETSATSR", "DETSKY", "MEASSTAT", "MEASSRC", "CPSTAT", "CPSEP", "CPPA", "CPDM",
+        "CPSEPE", "CPPAE", "CPDME", "CPNTRI", "CPSIGN", "CPDET"};
+    const char *missing = NULL;
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0] && !missing; i++) {
+        double v;
+        const char *sv;
+        if (cube_meta_get_num(&r.meta, keys[i], &v) != SL_OK &&
+            cube_meta_get_str(&r.meta, keys[i], &sv) != SL_OK)
+            missing = keys[i];
+    }
+    int stuck = r.report.detector.nstuck, chosen = r.report.probe.chosen;
+    pipeline_result_clear(&r);
+    blind_remove(&c);
+    CHECK(!missing, "keyword %s missing from the header", missing);
+    CHECK(stuck == 3 && chosen, "report: %d stuck pixels (3 planted), chosen %d", stuck, chosen);
+}
+
 TC_MAIN(TC_CASE(camera_cube_with_hot_pixels_every_method), TC_CASE(amateur_close_pair_8_bit),
         TC_CASE(six_star_either_phase_model), TC_CASE(a_point_source_is_unresolved),
-        TC_CASE(a258_methods_agree_or_say_so))
+        TC_CASE(a258_methods_agree_or_say_so), TC_CASE(every_promised_keyword_is_written))

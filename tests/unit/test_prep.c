@@ -129,15 +129,19 @@ TEST(choices_are_recorded_and_bad_options_named)
     prep *p = NULL;
     sl_err e;
     CHECK(prep_new(&p, W, H, &o, &e) == SL_OK, "%s", e.msg);
-    cube_meta m;
-    cube_meta_init(&m);
-    prep_describe(p, &m);
-    const char *s;
-    double v;
-    CHECK(cube_meta_get_str(&m, "PREPWIN", &s) == SL_OK && !strcmp(s, "tukey"), "PREPWIN");
-    CHECK(cube_meta_get_str(&m, "PREPSKY", &s) == SL_OK && strstr(s, "border"), "PREPSKY");
-    CHECK(cube_meta_get_num(&m, "PREPDARK", &v) == SL_OK && v == 0, "PREPDARK");
+    pipeline_prep_report r;
+    prep_report_fill(p, &r);
+    CHECK(r.on && r.sky == 1 && !r.dark && !r.flat && !r.recentred && r.nbad == 0 &&
+          r.border_px == 2, "sky %d dark %d flat %d border %d", r.sky, r.dark, r.flat,
+          r.border_px);
     prep_free(p);
+    float dark[W * H] = {0};
+    o.dark = dark;
+    CHECK(prep_new(&p, W, H, &o, &e) == SL_OK, "%s", e.msg);
+    prep_report_fill(p, &r);
+    CHECK(r.dark && r.sky == 3, "with a dark: dark %d sky %d", r.dark, r.sky);
+    prep_free(p);
+    o.dark = NULL;
     o.tukey_alpha = 0;
     CHECK(prep_new(&p, W, H, &o, &e) == SL_EINVAL && strstr(e.msg, "alpha"), "%s", e.msg);
     prep_opts_defaults(&o);

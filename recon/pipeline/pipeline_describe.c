@@ -1,0 +1,212 @@
+/* pipeline_describe.c - the reconstruction's header, written in one place
+ * from the typed result (pipeline.h: pipeline_report, pipeline_binary).
+ *
+ * Every keyword is counted: a header that cannot hold one (the extras
+ * list full, a string too long) is an error naming it, never a key
+ * silently dropped.  Strings are cut to a FITS card's 68 characters. */
+#include <stdio.h>
+#include <string.h>
+
+#include "pipeline_int.h"
+
+typedef struct keys {
+    cube_meta *m;
+    int rc;
+    char first[CUBE_KEY_MAX];   /* the first keyword that did not fit */
+} keys;
+
+static void num(keys *k, const char *key, double v, const char *comment)
+{
+    int rc = cube_meta_set_num(k->m, key, v, comment);
+    if (rc != SL_OK && k->rc == SL_OK) {
+        k->rc = rc;
+        snprintf(k->first, sizeof k->first, "%s", key);
+    }
+}
+
+static void str(keys *k, const char *key, const char *v, const char *comment)
+{
+    char cut[CUBE_STR_MAX];
+    snprintf(cut, sizeof cut, "%.68s", v);
+    int rc = cube_meta_set_str(k->m, key, cut, comment);
+    if (rc != SL_OK && k->rc == SL_OK) {
+        k->rc = rc;
+        snprintf(k->first, sizeof k->first, "%s", key);
+    }
+}
+
+static const char *phsrc_names[] = {"none", "option", "SIMPHOT", "GAIN"};
+
+const char *pipeline_photon_source_name(int s)
+{
+    return s >= 0 && s <= PIPE_PHOT_GAIN ? phsrc_names[s] : "unknown";
+}
+
+static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
+{
+    const pipeline_report *p = &r->report;
+    str(k, "RECMETH", pipeline_method_name(p->method), "reconstruction method");
+    num(k, "RECNFRM", r->nframes, "frames reconstructed");
+    num(k, "RECPHOT", p->photons, "photons/frame for bias, 0 = unknown");
+    str(k, "RECPHSRC", pipeline_photon_source_name(p->photon_source),
+        "RECPHOT from: option, SIMPHOT, or GAIN and the flux");
+    str(k, "RECREF", o->ref_path ? o->ref_path : "none", "reference (point-source) sequence");
+    if (p->scale != 1.0)
+        num(k, "RECSCALE", p->scale, "frames x this (power of 2) for the float sums");
+    num(k, "RECTIME", r->elapsed_s, "[s] reconstruction wall time");
+    if (p->method == PIPE_DIRECT) {
+        str(k, "RECWIN", p->window == POWSPEC_WIN_NONE ? "none" :
+            p->window == POWSPEC_WIN_HANN ? "hann" : "tukey", "frame apodisation");
+        num(k, "RECR2", p->r2_px, "[px] bispectrum |u2| radius");
+        num(k, "RECRCUT", p->rcut_px, "[px] measured Fourier cut-off");
+        num(k, "RECNTRI", (double)p->ntriples, "closure triangles stored");
+        num(k, "RECMISF", p->misfit, "phase recursion's closure misfit");
+        num(k, "RECSNRPS", p->support_snr, "power-spectrum SNR over the support");
+        num(k, "RECGAIN", p->gain_adu / p->scale, "[adu/photon] photon-bias gain, 0 = floor");
+        return;
+    }
+    num(k, "RECNANG", p->nangles, "TSM projection angles");
+    num(k, "RECCUT", p->cutoff_cyc_px, "[cyc/px] TSM cut-off");
+    num(k, "RECNPAIR", p->npairs, "1-D bispectrum pairs per angle");
+    str(k, "RECTINV", p->inverse == TSM_INV_ITER ? "iterative" : "fbp",
+        "TSM inverse: filtered back projection or iterative");
+    str(k, "RECTPHAS", p->corrected_phases ? "corrected" : "raw",
+        "TSM phases: raw or photon-bias-corrected bispectrum");
+    num(k, "RECARC", p->arc_bins, "[bins] TSM bispectrum angular average");
+    num(k, "RECTEXT", p->tsm_extent_px, "[px] TSM object diameter capping RECARC");
+    str(k, "RECBIAS", p->bias_photon ? "photon" : "floor",
+        "TSM white-noise bias: photon count or measured floor");
+    num(k, "RECNOISE", p->noise_level, "TSM white-noise power subtracted");
+}
+
+static void prep_keys(keys *k, const pipeline_report *p)
+{
+    static const char *sky[] = {"none", "border median", "sky-mask mean", "none (dark given)"};
+    static const char *sat[] = {"none", "type", "adc", "flat-top"};
+    const pipeline_prep_report *c = &p->prep;
+    if (c->on) {
+        num(k, "PREPDARK", c->dark, "1 = dark/bias subtracted");
+        num(k, "PREPFLAT", c->flat, "1 = flat-fielded");
+        str(k, "PREPSKY", sky[c->sky], "sky estimate subtracted per frame");
+        num(k, "PREPBORD", c->border_px, "[px] sky border band");
+        num(k, "PREPSAT", c->saturation_adu / p->scale, "[adu] saturation, 0 = none");
+        num(k, "PREPNBAD", c->nbad, "pixels in the bad-pixel map");
+        str(k, "PREPWIN", "none", "apodisation window");
+        num(k, "PREPCENT", c->recentred, "1 = frames recentred on the cloud");
+    }
+    const pipeline_detector_report *d = &p->detector;
+    if (!d->learnt)
+        return;
+    num(k, "DETNFRM", d->nframes, "raw frames the detector was learnt from");
+    num(k, "DETSTUCK", d->nstuck, "stuck pixels found (repaired)");
+    num(k, "DETHOT", d->nhot, "hot pixels found (repaired)");
+    num(k, "DETDEAD", d->ndead, "dead pixels found (repaired)");
+    num(k, "DETSAT", d->sat_level_adu, "[adu] saturation level found, 0 = none");
+    str(k, "DETSATSR", sat[d->sat_source], "saturation from: type, adc, flat-top");
+    num(k, "DETQUANT", d->quantum_adu, "[adu] data step, 0 = real-valued");
+    num(k, "DETSKY", d->sky_adu, "[adu] raw sky level");
+    num(k, "DETSKYRM", d->sky_rms_adu, "[adu] sky temporal rms");
+    num(k, "DETCX", d->cx_px, "[px] raw cloud centre x (0-based)");
+    num(k, "DETCY", d->cy_px, "[px] raw cloud centre y (0-based)");
+}
+
+static void probe_keys(keys *k, const pipeline_probe_report *c)
+{
+    if (!c->probed)
+        return;
+    char buf[64];
+    pipeline_skips_name(c->skips, buf, sizeof buf);
+    str(k, "RECSKIPS", buf, "skips applied");
+    num(k, "RECPRBN", c->probed, "frames the scene probe measured");
+    num(k, "RECCROPX", c->crop_x0, "[px] crop origin x (0-based)");
+    num(k, "RECCROPY", c->crop_y0, "[px] crop origin y (0-based)");
+    num(k, "RECCROPW", c->crop_w, "[px] reconstructed crop width");
+    num(k, "RECCROPH", c->crop_h, "[px] reconstructed crop height");
+    num(k, "RECCLOUD", c->cloud_radius_px, "[px] speckle cloud radius at the crop's level");
+    num(k, "RECCLEVL", c->cloud_level, "cloud edge, x long-exposure profile peak");
+    num(k, "RECCFLUX", c->crop_flux_frac, "long-exposure flux inside the crop");
+    if (c->spectrum) {
+        num(k, "RECSUPP", c->support_cyc_px, "[cyc/px] measured Fourier support radius");
+        num(k, "RECSFRAC", c->support_frac, "fraction of the crop's frequencies in the support");
+        num(k, "RECEXTNT", c->extent_px, "[px] image diameter (autocorrelation)");
+        num(k, "RECSNR", c->snr, "probe SNR: sqrt(support power / noise)");
+    }
+    num(k, "RECREJ", c->rejected[1] + c->rejected[2] + c->rejected[3] + c->rejected[4],
+        "frames rejected (sum of RECREJ*)");
+    num(k, "RECREJE", c->rejected[1], "rejected: empty");
+    num(k, "RECREJS", c->rejected[2], "rejected: saturated");
+    num(k, "RECREJF", c->rejected[3], "rejected: flux beyond median +- k MAD");
+    num(k, "RECREJQ", c->rejected[4], "rejected: sharpness beyond median +- k MAD");
+    num(k, "RECREJK", c->reject_mad, "rejection threshold k (MAD)");
+    if (!c->chosen)
+        return;
+    num(k, "RECTGERR", c->target_error, "target error 1 - c of the model");
+    num(k, "RECPRED", c->pred_error, "model's predicted 1 - c");
+    num(k, "RECPCOST", c->pred_cost_s, "[s] model's predicted CPU time");
+    str(k, "RECCHOSE", c->chosen_label, "configuration chosen");
+}
+
+static void closure_keys(keys *k, const pipeline_binary *r)
+{
+    if (!r->have_closure) {
+        str(k, "CPSTAT", r->have_image || r->have_fringe ? "no closure fit"
+            : "no start: no companion found", "closure-phase binary fit failed");
+        return;
+    }
+    const binary_result *cp = &r->closure;
+    str(k, "CPSTAT", "ok", "closure-phase binary fit (closure.h)");
+    num(k, "CPSEP", cp->sep_px, "[px] binary separation, closure phases");
+    num(k, "CPSEPE", cp->sep_err_px, "[px] its 1-sigma error");
+    num(k, "CPPA", cp->pa_deg, "[deg] PA from +y (N) to -x (E)");
+    num(k, "CPPAE", cp->pa_err_deg, "[deg] its 1-sigma error");
+    num(k, "CPDM", cp->dm_mag, "[mag] magnitude difference");
+    num(k, "CPDME", cp->dm_err_mag, "[mag] its 1-sigma error");
+    num(k, "CPAMBIG", cp->pa_ambiguous, "1 = r within 2 sigma of 1");
+    num(k, "CPNTRI", (double)r->closure_info.ntriples, "closure triangles fitted");
+    num(k, "CPNFREQ", r->closure_info.nfreq, "distinct frequencies in them");
+    num(k, "CPRMS", r->closure_info.rms_rad, "[rad] weighted rms closure residual");
+    num(k, "CPSIGN", r->closure_info.sign_chi2, "chi2 by which -d fits worse");
+    num(k, "CPDET", r->closure_info.detect_chi2, "chi2 by which no companion fits worse");
+}
+
+static void binary_keys(keys *k, const pipeline_binary *r)
+{
+    if (r->status == PIPE_BIN_NONE)
+        return;
+    str(k, "MEASSTAT", pipeline_binary_status_name(r->status),
+        "binary: measured, ambiguous, unresolved, inconsistent");
+    str(k, "MEASSRC", pipeline_binary_source_name(r->source), "binary from: closure, image, fringe");
+    if (r->why[0])
+        str(k, "MEASWHY", r->why, "why the binary is not plainly measured");
+    if (r->source != PIPE_BIN_SRC_NONE) {
+        num(k, "MEASSEP", r->sep_px, "[px] binary separation");
+        num(k, "MEASSEPE", r->sep_err_px, "[px] its 1-sigma error");
+        num(k, "MEASPA", r->pa_deg, "[deg] PA from +y (N) to -x (E)");
+        num(k, "MEASPAE", r->pa_err_deg, "[deg] its 1-sigma error");
+        num(k, "MEASDM", r->dm_mag, "[mag] magnitude difference");
+        num(k, "MEASDME", r->dm_err_mag, "[mag] its 1-sigma error");
+    }
+    if (r->fringe_ran) {
+        num(k, "FRSEP", r->fringe.sep_px, "[px] fringe fit separation");
+        num(k, "FRPA", r->fringe.pa_deg, "[deg] fringe fit PA, or + 180");
+        num(k, "FRDM", r->fringe.dm_mag, "[mag] fringe fit dm");
+        num(k, "FRSIG", r->fringe.significance, "fringe fit significance");
+        num(k, "FRCHI2", r->fringe.chi2_red, "fringe fit reduced chi2");
+    }
+    closure_keys(k, r);
+}
+
+int pipeline_describe(const pipeline_opts *o, const cube_meta *in,
+                      pipeline_result *r, sl_err *err)
+{
+    keys k = {&r->meta, SL_OK, ""};
+    r->meta = *in;
+    run_keys(&k, o, r);
+    prep_keys(&k, &r->report);
+    probe_keys(&k, &r->report.probe);
+    binary_keys(&k, &r->binary);
+    if (k.rc != SL_OK)
+        return sl_seterr(err, k.rc, "the image header cannot hold %s (%d "
+                         "keywords: the input's and ours)", k.first, r->meta.nextra);
+    return SL_OK;
+}

@@ -146,9 +146,60 @@ static double support_snr(const double *ps, const unsigned char *support,
     return sqrt(fmax(sum / k, 0) / noise);
 }
 
+/* The bispectrum's options for s: R2, support, window, photon bias,
+ * threads and the phase solver's weights and refinement. */
+static void direct_opts(const stream *s, const pipeline_opts *o, double g,
+                        double photons, double snr, unsigned char *support,
+                        bispec_opts *bo)
+{
+    bispec_opts_default(bo);
+    int side = s->w < s->h ? s->w : s->h;
+    bo->r2_px = o->r2_px > 0 ? o->r2_px : (int)lround(0.14 * side);
+    bo->r2_px = bo->r2_px > BISPEC_R2_MAX ? BISPEC_R2_MAX : bo->r2_px < 1 ? 1 : bo->r2_px;
+    bo->support = support;
+    bo->window = o->window;
+    bo->tukey_alpha = o->tukey_alpha;
+    bo->adu_per_photon = g;
+    bo->read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
+    bo->nthreads = o->nthreads > 0 ? o->nthreads : 2;
+    bo->measure = o->fftw_measure;
+    /* Noisy data (the power in the support within 30^2 of the white
+     * noise's: 1000 photons give ~2) get the least-squares refinement with
+     * SNR weights, |B| over its standard error across the frames (50 %
+     * more accumulator memory): six-star at 1000 photons c 0.793 -> 0.886,
+     * a binary unchanged.  Clean data refine only when the recursion's
+     * misfit asks (phasor.h). */
+    int noisy = snr < 30;
+    bo->refine_iters = o->refine_iters >= 0 ? o->refine_iters : noisy ? PHASOR_AUTO_ITERS : -1;
+    bo->weight = o->phase_weight >= 0 ? o->phase_weight : PHASOR_WEIGHT_MOD;
+    bo->refine_weight = o->phase_weight >= 0 ? o->phase_weight
+                                             : noisy ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
+}
+
+/* The modulus divided by the reference's transfer function (and times the
+ * target's), into mod; ps_ref: n doubles of scratch. */
+static int reference_modulus(stream *s, stream *ref, const pipeline_opts *o,
+                             const double *ps, double *ps_ref, double *mod,
+                             sl_err *err)
+{
+    double gr = 0, pr = 0;
+    int src, rc;
+    if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK ||
+        (rc = sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, NULL, err)) != SL_OK)
+        return rc;
+    powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);
+    if (!o->target_path)
+        return SL_OK;
+    if ((rc = target_mtf(o->target_path, s->w, s->h, ps_ref, err)) != SL_OK)
+        return rc;
+    for (size_t i = 0, n = (size_t)s->w * s->h; i < n; i++)
+        mod[i] *= ps_ref[i];
+    return SL_OK;
+}
+
 static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
                       double photons, double g, float *img, pipeline_report *rep,
-                              pipeline_binary *bin, sl_err *err)
+                      pipeline_binary *bin, sl_err *err)
 {
     size_t n = (size_t)s->w * s->h;
     double *ps = malloc(n * sizeof *ps), *ps_ref = NULL, *mod = NULL;
@@ -173,32 +224,9 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
      * 1e-6 floor decides there). */
     double rcut = 0;
     powspec_support(ps, s->w, s->h, 3, 1e-6, 1.0, noise / sqrt(nps), support, &rcut);
+    double snr = support_snr(ps, support, n, noise);
     bispec_opts bo;
-    bispec_opts_default(&bo);
-    int side = s->w < s->h ? s->w : s->h;
-    bo.r2_px = o->r2_px > 0 ? o->r2_px : (int)lround(0.14 * side);
-    if (bo.r2_px > BISPEC_R2_MAX)
-        bo.r2_px = BISPEC_R2_MAX;
-    if (bo.r2_px < 1)
-        bo.r2_px = 1;
-    bo.support = support;
-    bo.window = o->window;
-    bo.tukey_alpha = o->tukey_alpha;
-    bo.adu_per_photon = g;
-    bo.read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
-    bo.nthreads = o->nthreads > 0 ? o->nthreads : 2;
-    bo.measure = o->fftw_measure;
-    /* Noisy data (the power in the support within 30^2 of the white
-     * noise's: 1000 photons give ~2) get the least-squares refinement with
-     * SNR weights, |B| over its standard error across the frames (50 %
-     * more accumulator memory): six-star at 1000 photons c 0.793 -> 0.886,
-     * a binary unchanged.  Clean data refine only when the recursion's
-     * misfit asks (phasor.h). */
-    int noisy = support_snr(ps, support, n, noise) < 30;
-    bo.refine_iters = o->refine_iters >= 0 ? o->refine_iters : noisy ? PHASOR_AUTO_ITERS : -1;
-    bo.weight = o->phase_weight >= 0 ? o->phase_weight : PHASOR_WEIGHT_MOD;
-    bo.refine_weight = o->phase_weight >= 0 ? o->phase_weight
-                                            : noisy ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
+    direct_opts(s, o, g, photons, snr, support, &bo);
     if (!(b = bispec_new(s->w, s->h, &bo, err))) {
         rc = err ? err->code : SL_ENOMEM;
         goto free_all;
@@ -208,21 +236,10 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     if (ref) {
         ps_ref = malloc(n * sizeof *ps_ref);
         mod = malloc(n * sizeof *mod);
-        double gr = 0, pr = 0;
-        int src;
-        if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK)
-            goto free_all;
         rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
-                             : sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, NULL, err);
+                             : reference_modulus(s, ref, o, ps, ps_ref, mod, err);
         if (rc != SL_OK)
             goto free_all;
-        powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);
-        if (o->target_path) {
-            if ((rc = target_mtf(o->target_path, s->w, s->h, ps_ref, err)) != SL_OK)
-                goto free_all;
-            for (size_t i = 0; i < n; i++)
-                mod[i] *= ps_ref[i];
-        }
     }
     if ((rc = bispec_image(b, mod, img)) != SL_OK) {
         sl_seterr(err, rc, "%s", bispec_errmsg(b));
@@ -238,7 +255,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     rep->rcut_px = rcut;
     rep->ntriples = (long)bispec_ntriples(b);
     rep->misfit = bispec_misfit(b);
-    rep->support_snr = support_snr(ps, support, n, noise);
+    rep->support_snr = snr;
     rep->gain_adu = g;
 free_all:
     bispec_free(b);

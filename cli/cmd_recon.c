@@ -132,89 +132,100 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
     }
 }
 
-static int recon_run(recon_args *a, char **inputs, int ninputs)
+/* value names[i] -> vals[i]; 1, or 0 after naming the choices. */
+static int parse_choice(const char *opt, const char *value, const char *const *names,
+                        const int *vals, int n, int *out)
 {
-    pipeline_opts o;
-    pipeline_opts_defaults(&o);
-    if (a->method && pipeline_method_parse(a->method, &o.method) != SL_OK) {
+    for (int i = 0; i < n; i++)
+        if (!strcmp(value, names[i])) {
+            *out = vals[i];
+            return 1;
+        }
+    fprintf(stderr, "specklab recon: unknown --%s '%s' (", opt, value);
+    for (int i = 0; i < n; i++)
+        fprintf(stderr, "%s%s", i ? ", " : "", names[i]);
+    fprintf(stderr, ")\n");
+    return 0;
+}
+
+/* The named choices of recon's options into o; 0 after a usage error. */
+static int parse_choices(const recon_args *a, pipeline_opts *o)
+{
+    static const char *const win[] = {"none", "hann", "tukey"};
+    static const int winv[] = {POWSPEC_WIN_NONE, POWSPEC_WIN_HANN, POWSPEC_WIN_TUKEY};
+    static const char *const phases[] = {"raw", "corrected"};
+    static const char *const inv[] = {"fbp", "iter"};
+    static const int invv[] = {TSM_INV_AUTO, TSM_INV_ITER};
+    static const char *const weights[] = {"mod", "snr", "unit"};
+    static const int idx[] = {0, 1, 2};
+    if (a->method && pipeline_method_parse(a->method, &o->method) != SL_OK) {
         fprintf(stderr, "specklab recon: unknown --method '%s' (direct, tsm, "
                         "tsm-fourier, auto)\n", a->method);
-        return 2;
+        return 0;
     }
-    if (a->skips && pipeline_skips_parse(a->skips, &o.skips) != SL_OK) {
+    if (a->skips && pipeline_skips_parse(a->skips, &o->skips) != SL_OK) {
         fprintf(stderr, "specklab recon: --skips '%s': a list of reject, crop, "
                         "support, angles, or all, none\n", a->skips);
-        return 2;
+        return 0;
     }
+    int inverse = o->tsm_inverse;
+    int ok = (!a->window || parse_choice("window", a->window, win, winv, 3, &o->window)) &&
+             (!a->tsm_phases || parse_choice("tsm-phases", a->tsm_phases, phases, idx, 2,
+                                             &o->tsm_corrected_phases)) &&
+             (!a->tsm_inverse || parse_choice("tsm-inverse", a->tsm_inverse, inv, invv, 2,
+                                              &inverse)) &&
+             (!a->phase_weights || parse_choice("phase-weights", a->phase_weights, weights,
+                                                idx, 3, &o->phase_weight));
+    o->tsm_inverse = inverse;
+    return ok;
+}
+
+/* recon's options into o; 0 after a usage error (printed). */
+static int opts_from_args(const recon_args *a, pipeline_opts *o)
+{
+    pipeline_opts_defaults(o);
+    if (!parse_choices(a, o))
+        return 0;
     if (a->target_error < 0 || a->target_error >= 1) {
         fprintf(stderr, "specklab recon: --target-error %g: 1 - c in (0, 1)\n",
                 a->target_error);
+        return 0;
+    }
+    if (a->refine < -1) {
+        fprintf(stderr, "specklab recon: --refine %d: want -1 (automatic), 0 "
+                        "(none) or a number of passes\n", a->refine);
+        return 0;
+    }
+    o->target_error = a->target_error;
+    o->nangles = a->projections;
+    o->r2_px = a->r2;
+    o->prep = !a->no_prep;
+    o->learn_badpix = a->learn_badpix;
+    o->detect = !a->no_detect;
+    o->recentre = !a->no_recentre;
+    o->badpix_path = a->badpix;
+    o->saturation_adu = a->saturation;
+    o->photons_per_frame = a->photons;
+    o->adu_per_photon = a->gain_adu_per_photon;
+    o->ref_path = a->ref;
+    o->target_path = a->target;
+    o->wiener = a->wiener;
+    o->nthreads = a->threads;
+    o->refine_iters = a->refine;
+    o->closure_binary = a->binary;
+    return 1;
+}
+
+static int recon_run(recon_args *a, char **inputs, int ninputs)
+{
+    pipeline_opts o;
+    if (!opts_from_args(a, &o))
         return 2;
-    }
-    o.target_error = a->target_error;
-    if (a->window) {
-        if (!strcmp(a->window, "none")) o.window = POWSPEC_WIN_NONE;
-        else if (!strcmp(a->window, "hann")) o.window = POWSPEC_WIN_HANN;
-        else if (!strcmp(a->window, "tukey")) o.window = POWSPEC_WIN_TUKEY;
-        else {
-            fprintf(stderr, "specklab recon: unknown --window '%s' (none, hann, tukey)\n", a->window);
-            return 2;
-        }
-    }
-    if (a->tsm_phases) {
-        if (!strcmp(a->tsm_phases, "raw")) o.tsm_corrected_phases = 0;
-        else if (!strcmp(a->tsm_phases, "corrected")) o.tsm_corrected_phases = 1;
-        else {
-            fprintf(stderr, "specklab recon: unknown --tsm-phases '%s' (raw, corrected)\n", a->tsm_phases);
-            return 2;
-        }
-    }
-    if (a->tsm_inverse) {
-        if (!strcmp(a->tsm_inverse, "fbp")) o.tsm_inverse = TSM_INV_AUTO;
-        else if (!strcmp(a->tsm_inverse, "iter")) o.tsm_inverse = TSM_INV_ITER;
-        else {
-            fprintf(stderr, "specklab recon: unknown --tsm-inverse '%s' (fbp, iter)\n", a->tsm_inverse);
-            return 2;
-        }
-    }
     preview_stretch stretch = PREVIEW_SQRT;
     if (a->stretch && preview_stretch_parse(a->stretch, &stretch) != SL_OK) {
         fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
         return 2;
     }
-    o.nangles = a->projections;
-    o.r2_px = a->r2;
-    o.prep = !a->no_prep;
-    o.learn_badpix = a->learn_badpix;
-    o.detect = !a->no_detect;
-    o.recentre = !a->no_recentre;
-    o.badpix_path = a->badpix;
-    o.saturation_adu = a->saturation;
-    o.photons_per_frame = a->photons;
-    o.adu_per_photon = a->gain_adu_per_photon;
-    o.ref_path = a->ref;
-    o.target_path = a->target;
-    o.wiener = a->wiener;
-    o.nthreads = a->threads;
-    if (a->refine < -1) {
-        fprintf(stderr, "specklab recon: --refine %d: want -1 (automatic), 0 "
-                        "(none) or a number of passes\n", a->refine);
-        return 2;
-    }
-    o.refine_iters = a->refine;
-    if (a->phase_weights) {
-        static const char *names[] = {"mod", "snr", "unit"};
-        o.phase_weight = -2;
-        for (int i = 0; i < 3; i++)
-            if (!strcmp(a->phase_weights, names[i]))
-                o.phase_weight = i;
-        if (o.phase_weight < 0) {
-            fprintf(stderr, "specklab recon: --phase-weights '%s': want mod, "
-                            "snr or unit\n", a->phase_weights);
-            return 2;
-        }
-    }
-    o.closure_binary = a->binary;
     pipeline_result r;
     sl_err e = {0};
     if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {

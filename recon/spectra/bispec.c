@@ -206,86 +206,84 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
     return SL_OK;
 }
 
-bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
+/* The triple graph: frequencies of the support, triples per target, the
+ * threads' ranges.  SL_EDATA for a support of fewer than 4 frequencies
+ * (message in err), SL_ENOMEM. */
+static int build_graph(bispec *b, sl_err *err)
 {
-    bispec_opts def;
-    if (!o) {
-        bispec_opts_default(&def);
-        o = &def;
-    }
-    if (check_opts(o, w, h, err) != SL_OK)
-        return NULL;
-    bispec *b = calloc(1, sizeof *b);
-    unsigned char *reach = NULL;
-    if (!b)
-        goto fail_nomem;
-    b->w = w;
-    b->h = h;
-    b->wc = w / 2 + 1;
-    b->o = *o;
-    b->nthr = o->nthreads;
     int rc = build_freqs(b);
     b->o.support = NULL; /* not kept: the caller may free it */
     if (rc != SL_OK)
-        goto fail_nomem;
-    int nf = b->nf;
-    if (nf < 4) {
-        sl_seterr(err, SL_EDATA, "bispec: support has only %d frequencies", nf);
-        goto fail_free;
+        return SL_ENOMEM;
+    if (b->nf < 4)
+        return sl_seterr(err, SL_EDATA, "bispec: support has only %d frequencies", b->nf);
+    unsigned char *reach = malloc((size_t)b->nf);
+    b->tstart = balloc(b, ((size_t)b->nf + 1) * sizeof *b->tstart);
+    if (!reach || !b->tstart) {
+        free(reach);
+        return SL_ENOMEM;
     }
-    reach = malloc((size_t)nf);
-    b->tstart = balloc(b, ((size_t)nf + 1) * sizeof *b->tstart);
-    if (!reach || !b->tstart)
-        goto fail_nomem;
     scan_triples(b, 0, reach);
     b->tk = balloc(b, (size_t)b->nt * sizeof *b->tk);
-    if (!b->tk)
-        goto fail_nomem;
-    scan_triples(b, 1, reach);
+    if (b->tk)
+        scan_triples(b, 1, reach);
     free(reach);
-    reach = NULL;
-    b->trange = balloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange);
+    b->trange = b->tk ? balloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange) : NULL;
     if (!b->trange)
-        goto fail_nomem;
+        return SL_ENOMEM;
     split_ranges(b);
+    return SL_OK;
+}
 
-    size_t nt = (size_t)b->nt, asz = o->acc_float ? sizeof(float) : sizeof(double);
+/* Every buffer, from one table: what it is, its size, whether this
+ * configuration needs it.  balloc's 64-byte alignment also suits FFTW's
+ * SIMD codelets. */
+static int alloc_buffers(bispec *b)
+{
+    const bispec_opts *o = &b->o;
+    size_t nt = (size_t)b->nt, nf = (size_t)b->nf, npx = (size_t)b->w * b->h;
+    size_t nh = (size_t)b->h * b->wc, asz = o->acc_float ? sizeof(float) : sizeof(double);
     int snr = o->weight == PHASOR_WEIGHT_SNR || o->refine_weight == PHASOR_WEIGHT_SNR;
-    void *acc = balloc(b, 2 * nt * asz), *acc2 = snr ? balloc(b, nt * asz) : NULL;
-    if (o->acc_float) {
-        b->accf = acc;
-        b->acc2f = acc2;
-    } else {
-        b->accd = acc;
-        b->acc2d = acc2;
-    }
     int ph = o->adu_per_photon > 0, win = o->window != POWSPEC_WIN_NONE;
-    size_t npx = (size_t)w * h, nh = (size_t)h * b->wc;
-    /* balloc's 64-byte alignment also suits FFTW's SIMD codelets. */
-    b->fb = balloc(b, (size_t)nf * 2 * 2 * K * sizeof(float));
-    b->psum = balloc(b, (size_t)nf * sizeof(double));
-    b->xsum = ph ? balloc(b, 2 * (size_t)nf * sizeof(double)) : NULL;
-    b->phi = balloc(b, (size_t)nf * sizeof(double));
-    b->known = balloc(b, (size_t)nf);
-    b->work = balloc(b, phasor_work_doubles(nf) * sizeof(double));
-    b->win = win ? balloc(b, npx * sizeof(float)) : NULL;
-    b->in = balloc(b, npx * sizeof(float));
-    b->out = balloc(b, nh * sizeof(fftwf_complex));
-    b->in2 = ph && win ? balloc(b, npx * sizeof(float)) : NULL;
-    b->out2 = ph && win ? balloc(b, nh * sizeof(fftwf_complex)) : NULL;
-    b->cin = balloc(b, nh * sizeof(fftw_complex));
-    b->cout = balloc(b, npx * sizeof(double));
-    if (!acc || (snr && !acc2) || !b->fb || !b->psum || (ph && !b->xsum) ||
-        !b->phi || !b->known || !b->work || (win && !b->win) || !b->in ||
-        !b->out || (ph && win && (!b->in2 || !b->out2)) || !b->cin ||
-        !b->cout)
-        goto fail_nomem;
-    if (win)
+    void *acc = NULL, *acc2 = NULL;
+    const struct { void **slot; size_t bytes; int want; } bufs[] = {
+        {&acc, 2 * nt * asz, 1},
+        {&acc2, nt * asz, snr},
+        {(void **)&b->fb, nf * 2 * 2 * K * sizeof(float), 1},
+        {(void **)&b->psum, nf * sizeof(double), 1},
+        {(void **)&b->xsum, 2 * nf * sizeof(double), ph},
+        {(void **)&b->phi, nf * sizeof(double), 1},
+        {(void **)&b->known, nf, 1},
+        {(void **)&b->work, phasor_work_doubles((int)nf) * sizeof(double), 1},
+        {(void **)&b->win, npx * sizeof(float), win},
+        {(void **)&b->in, npx * sizeof(float), 1},
+        {(void **)&b->out, nh * sizeof(fftwf_complex), 1},
+        {(void **)&b->in2, npx * sizeof(float), ph && win},
+        {(void **)&b->out2, nh * sizeof(fftwf_complex), ph && win},
+        {(void **)&b->cin, nh * sizeof(fftw_complex), 1},
+        {(void **)&b->cout, npx * sizeof(double), 1}};
+    for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
+        if (bufs[i].want && !(*bufs[i].slot = balloc(b, bufs[i].bytes)))
+            return SL_ENOMEM;
+    if (o->acc_float)
+        b->accf = acc, b->acc2f = acc2;
+    else
+        b->accd = acc, b->acc2d = acc2;
+    return SL_OK;
+}
+
+/* The window, the read noise's sums over it and the FFT plans. */
+static int plan_transforms(bispec *b)
+{
+    const bispec_opts *o = &b->o;
+    int w = b->w, h = b->h, nf = b->nf;
+    size_t npx = (size_t)w * h;
+    if (b->win)
         powspec_window(o->window, o->tukey_alpha, w, h, b->win);
-    if (ph) { /* white noise of variance s^2: s^2 sum w^2 in |F|^2, s^2 sum w^3 in X */
+    if (b->xsum) { /* white noise of variance s^2: s^2 sum w^2 in |F|^2, s^2 sum w^3 in X */
         double s2 = o->read_noise_adu * o->read_noise_adu;
         for (size_t i = 0; i < npx; i++) {
-            double wv = win ? b->win[i] : 1.0;
+            double wv = b->win ? b->win[i] : 1.0;
             b->rw2 += s2 * wv * wv;
             b->rw3 += s2 * wv * wv * wv;
         }
@@ -301,9 +299,8 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
          * conj(S3 conj W2(u3))), the read-noise twin of Wirnitzer's
          * terms: folded into X per frame (bispec_add).  Zero without a
          * window (W2 = 0 off DC). */
-        b->w2ft = balloc(b, 2 * (size_t)nf * sizeof(double));
-        if (!b->w2ft)
-            goto fail_nomem;
+        if (!(b->w2ft = balloc(b, 2 * (size_t)nf * sizeof(double))))
+            return SL_ENOMEM;
         for (size_t i = 0; i < npx; i++)
             b->in2[i] = b->win[i] * b->win[i];
         fftwf_execute(b->plan2);
@@ -317,14 +314,35 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
     /* The image transform runs once per reconstruction: not worth
      * measuring. */
     b->iplan = fftw_plan_dft_c2r_2d(h, w, b->cin, b->cout, FFTW_ESTIMATE);
-    if (!b->plan || (b->in2 && !b->plan2) || !b->iplan)
-        goto fail_nomem;
+    return !b->plan || (b->in2 && !b->plan2) || !b->iplan ? SL_ENOMEM : SL_OK;
+}
+
+bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
+{
+    bispec_opts def;
+    if (!o) {
+        bispec_opts_default(&def);
+        o = &def;
+    }
+    if (check_opts(o, w, h, err) != SL_OK)
+        return NULL;
+    bispec *b = calloc(1, sizeof *b);
+    int rc = SL_ENOMEM;
+    if (!b)
+        goto fail;
+    b->w = w;
+    b->h = h;
+    b->wc = w / 2 + 1;
+    b->o = *o;
+    b->nthr = o->nthreads;
+    if ((rc = build_graph(b, err)) != SL_OK || (rc = alloc_buffers(b)) != SL_OK ||
+        (rc = plan_transforms(b)) != SL_OK)
+        goto fail;
     return b;
-fail_nomem:
-    sl_seterr(err, SL_ENOMEM, "bispec: out of memory (%dx%d, R2 %d, %lld "
-              "triples)", w, h, o->r2_px, b ? (long long)b->nt : 0LL);
-fail_free:
-    free(reach);
+fail:
+    if (rc == SL_ENOMEM)
+        sl_seterr(err, SL_ENOMEM, "bispec: out of memory (%dx%d, R2 %d, %lld "
+                  "triples)", w, h, o->r2_px, b ? (long long)b->nt : 0LL);
     bispec_free(b);
     return NULL;
 }

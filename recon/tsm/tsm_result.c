@@ -95,31 +95,26 @@ static void signal_transfer(const tsm *t, int a, double *h)
     }
 }
 
-int tsm_result(tsm *t, float *img)
+/* (3) The phases of every projection spectrum, from the raw bispectrum
+ * unless asked: measured (64^2, binary and 6 stars, 300..10^4
+ * photons/frame), the unbiased estimator's phases are much noisier where
+ * the photon bias dominates (c 0.69 vs 0.88 at 300 photons, PA errors);
+ * the bias, being real, only shrinks those elements' phases towards the
+ * smooth continuation.  The arc: bench binary, 24 seeds each, binary
+ * found / mean c, at D/r0 ~ 11 noiseless, 1e4 photons + read noise, and
+ * D/r0 ~ 4 with that noise: off 24 / 0.835, 20 / 0.801, 24 / 0.895; 1 bin
+ * 24 / 0.848, 23 / 0.843, 23 / 0.901; 1.5 bins 24 / 0.857, 24 / 0.862,
+ * 23 / 0.901; 2 bins 24 / 0.868, 24 / 0.869, 22 / 0.899. */
+static void result_phases(tsm *t, double sbar, double g, double lv)
 {
-    if (t->nframes == 0)
-        return sl_seterr(&t->err, SL_EDATA, "tsm_result: no frames added");
-    tsm_sync_sums(t);
-    int nf = t->nf, J = nf - 1, ns = t->ns, st;
-    double sbar, g, lv;
-    tsm_bias_terms(t, &sbar, &g, &lv);
-    /* (3) phases from the raw bispectrum unless asked: measured (64^2,
-     * binary and 6 stars, 300..10^4 photons/frame), the unbiased
-     * estimator's phases are much noisier where the photon bias dominates
-     * (c 0.69 vs 0.88 at 300 photons, PA errors); the bias, being real,
-     * only shrinks those elements' phases towards the smooth continuation.
-     * The arc: bench binary, 24 seeds each, binary found / mean c, at
-     * D/r0 ~ 11 noiseless, 1e4 photons + read noise, and D/r0 ~ 4 with
-     * that noise: off 24 / 0.835, 20 / 0.801, 24 / 0.895; 1 bin 24 / 0.848,
-     * 23 / 0.843, 23 / 0.901; 1.5 bins 24 / 0.857, 24 / 0.862,
-     * 23 / 0.901; 2 bins 24 / 0.868, 24 / 0.869, 22 / 0.899. */
+    int nf = t->nf;
     double arc = t->o.arc_bins > 0 ? t->o.arc_bins : t->o.arc_bins < 0 ? 0.0 : 1.5;
     t->extent = 0;
     if (t->o.arc_bins == 0) {   /* capped by the diameter: tsm_extent.c */
         tsm_power(t, t->psc);
-        t->extent = tsm_extent_px(t->psc, t->nang, nf, ns, 0.05);
+        t->extent = tsm_extent_px(t->psc, t->nang, nf, t->ns, 0.05);
         t->extent = t->extent > 0 ? t->extent : 0;   /* NAN: no memory, no cap */
-        arc = fmin(arc, tsm_arc_cap(t->extent, ns));
+        arc = fmin(arc, tsm_arc_cap(t->extent, t->ns));
     }
     t->arc = arc;
     for (size_t i = 0; i < (size_t)t->nang * nf; i++) {   /* psc: scratch */
@@ -130,7 +125,13 @@ int tsm_result(tsm *t, float *img)
                      t->o.bispec_bias_phase ? g : 0.0, sbar, t->o.weight, arc);
     int iters = t->o.refine_iters < 0 ? 0 : t->o.refine_iters ? t->o.refine_iters : 10;
     tsm_phase_solve(t->ph, iters, t->phase);
-    /* (4) modulus, (5) spectra */
+}
+
+/* (4) the modulus (calibrated by the reference when there is one,
+ * undamped, apodised) with the phases: the projection spectra. */
+static void result_spectra(tsm *t)
+{
+    int nf = t->nf, J = nf - 1;
     tsm_power(t, t->psc);
     for (int a = 0; a < t->nang; a++) {
         const double *pc = t->psc + (size_t)a * nf, *rf = t->ref + (size_t)a * nf;
@@ -150,20 +151,24 @@ int tsm_result(tsm *t, float *img)
             t->ospec[(size_t)a * nf + j] = CMPLXF((float)(m * cos(phi)), (float)(m * sin(phi)));
         }
     }
-    /* (5) centre each projection on its centroid: twice, the second pass
-     * measures with the object already away from the wrap point */
-    double cfrac = t->o.centroid_frac > 0 ? t->o.centroid_frac
-                 : t->o.centroid_frac < 0 ? 0.0 : 0.05;
+}
+
+/* (5) centre each projection on its centroid: twice, the second pass
+ * measures with the object already away from the wrap point.  Then align
+ * each to the sum of its neighbours within align_deg (they see nearly the
+ * same object): a per-angle shift measured on the whole profile rather
+ * than on its bright part; then the reprojection rounds.  *moved: whether
+ * the last two ran (the object may have moved as a whole). */
+static int result_align(tsm *t, float *img, double cfrac, int *moved)
+{
+    int nf = t->nf, ns = t->ns, st;
     for (int pass = 0; pass < 2; pass++) {
         if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-            goto fail_radon;
+            return st;
         for (int a = 0; a < t->nang; a++)
             tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns,
                             tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac));
     }
-    /* Then align each projection to the sum of its neighbours within
-     * align_deg (they see nearly the same object): a per-angle shift
-     * measured on the whole profile rather than on its bright part. */
     double adeg = t->o.align_deg > 0 ? t->o.align_deg : t->o.align_deg < 0 ? 0.0 : 8.0;
     int nbr = (int)floor(adeg * t->nang / 180.0 + 1e-9);
     nbr = nbr > t->nang / 4 ? t->nang / 4 : nbr;
@@ -176,48 +181,72 @@ int tsm_result(tsm *t, float *img)
                                             nf, ns, 3.0, t->pr));
     }
     int riters = t->o.reproj_iters < 0 ? 0 : t->o.reproj_iters ? t->o.reproj_iters : 3;
+    *moved = nbr > 0 || riters > 0;
     /* t->proj is free until the final projections: the rounds' shifts */
-    if (riters > 0 &&
-        (st = tsm_phase_reproj(t->rad, t->ospec, nf, (size_t)t->w * t->h, riters,
-                               t->o.reproj_frac > 0 ? t->o.reproj_frac : 0.2, img, t->sref,
-                               t->proj, t->pr)) != SL_OK)
-        goto fail_radon;
-    /* That may move the object as a whole: put its centroid back at the
-     * centre with one 2-D shift, the least-squares fit cx cos + cy sin of
-     * the per-angle centroids (consistent across angles by construction). */
-    if (nbr > 0 || riters > 0) {
-        if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-            goto fail_radon;
-        double cx = 0, cy = 0, sxx = 0, sxy = 0, syy = 0, bx = 0, by = 0;
-        for (int a = 0; a < t->nang; a++) {
-            double c = tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac);
-            double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
-            sxx += co * co, sxy += co * si, syy += si * si, bx += c * co, by += c * si;
-        }
-        double det = sxx * syy - sxy * sxy;
-        if (det > 1e-9 * (sxx + syy) * (sxx + syy)) {
-            cx = (syy * bx - sxy * by) / det, cy = (sxx * by - sxy * bx) / det;
-            for (int a = 0; a < t->nang; a++) {
-                double th = radon_angle_rad(t->rad, a);
-                tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns, cx * cos(th) + cy * sin(th));
-            }
-        }
-    }
+    if (riters > 0)
+        return tsm_phase_reproj(t->rad, t->ospec, nf, (size_t)t->w * t->h, riters,
+                                t->o.reproj_frac > 0 ? t->o.reproj_frac : 0.2, img,
+                                t->sref, t->proj, t->pr);
+    return SL_OK;
+}
+
+/* Put the object's centroid back at the centre with one 2-D shift, the
+ * least-squares fit cx cos + cy sin of the per-angle centroids
+ * (consistent across angles by construction). */
+static int result_recentre(tsm *t, double cfrac)
+{
+    int nf = t->nf, ns = t->ns, st;
     if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
-        goto fail_radon;
-    t->have_result = 1;
-    /* (6) inversion */
+        return st;
+    double sxx = 0, sxy = 0, syy = 0, bx = 0, by = 0;
+    for (int a = 0; a < t->nang; a++) {
+        double c = tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac);
+        double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
+        sxx += co * co, sxy += co * si, syy += si * si, bx += c * co, by += c * si;
+    }
+    double det = sxx * syy - sxy * sxy;
+    if (!(det > 1e-9 * (sxx + syy) * (sxx + syy)))
+        return SL_OK;
+    double cx = (syy * bx - sxy * by) / det, cy = (sxx * by - sxy * bx) / det;
+    for (int a = 0; a < t->nang; a++) {
+        double th = radon_angle_rad(t->rad, a);
+        tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns, cx * cos(th) + cy * sin(th));
+    }
+    return SL_OK;
+}
+
+/* (6) inversion */
+static int result_invert(tsm *t, float *img)
+{
     tsm_inverse inv = t->o.inverse;
     if (inv == TSM_INV_AUTO)
         inv = t->o.variant == TSM_FOURIER ? TSM_INV_FBP_GRID : TSM_INV_FBP_SPATIAL;
     switch (inv) {
-    case TSM_INV_FBP_SPATIAL: st = radon_fbp(t->rad, t->proj, img); break;
+    case TSM_INV_FBP_SPATIAL: return radon_fbp(t->rad, t->proj, img);
     case TSM_INV_ITER:
-        st = radon_invert_iter(t->rad, t->ospec, t->o.inv_iters ? t->o.inv_iters : 40, 1, img);
-        break;
-    default: st = radon_fbp_slices(t->rad, t->ospec, img); break;
+        return radon_invert_iter(t->rad, t->ospec, t->o.inv_iters ? t->o.inv_iters : 40, 1, img);
+    default: return radon_fbp_slices(t->rad, t->ospec, img);
     }
-    if (st != SL_OK)
+}
+
+int tsm_result(tsm *t, float *img)
+{
+    if (t->nframes == 0)
+        return sl_seterr(&t->err, SL_EDATA, "tsm_result: no frames added");
+    tsm_sync_sums(t);
+    double sbar, g, lv;
+    tsm_bias_terms(t, &sbar, &g, &lv);
+    result_phases(t, sbar, g, lv);
+    result_spectra(t);
+    double cfrac = t->o.centroid_frac > 0 ? t->o.centroid_frac
+                 : t->o.centroid_frac < 0 ? 0.0 : 0.05;
+    int moved = 0, st;
+    if ((st = result_align(t, img, cfrac, &moved)) != SL_OK ||
+        (moved && (st = result_recentre(t, cfrac)) != SL_OK) ||
+        (st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
+        goto fail_radon;
+    t->have_result = 1;
+    if ((st = result_invert(t, img)) != SL_OK)
         goto fail_radon;
     return SL_OK;
 fail_radon:

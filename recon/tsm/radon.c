@@ -204,90 +204,81 @@ static void setup_nufft(radon *r, double sigma)
     }
 }
 
-radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
-                 sl_err *err)
+/* The geometry the options and sizes imply: projection length ns,
+ * frequencies nf, oversampling sigma, kernel width kw, grid ng0 (0:
+ * from sigma).  SL_EINVAL (in err) naming the bad value. */
+static int radon_plan_sizes(int w, int h, int nangles, const radon_opts *o,
+                            int *ns, int *nf, double *sigma, int *kw, int *ng0,
+                            sl_err *err)
 {
-    radon_opts o;
-    if (opts)
-        o = *opts;
-    else
-        radon_opts_default(&o);
-    if (w < 4 || h < 4 || nangles < 1) {
-        sl_seterr(err, SL_EINVAL, "radon_new: bad size %dx%d or %d angles", w, h, nangles);
-        return NULL;
-    }
-    int ns = o.nproj ? o.nproj : (int)ceil(hypot(w, h)) + 2;
-    ns += ns & 1;
-    int nf = o.nfreq ? o.nfreq : ns / 2 + 1;
-    int mx = w > h ? w : h, ng0 = 0;
+    if (w < 4 || h < 4 || nangles < 1)
+        return sl_seterr(err, SL_EINVAL, "radon_new: bad size %dx%d or %d angles",
+                         w, h, nangles);
+    *ns = o->nproj ? o->nproj : (int)ceil(hypot(w, h)) + 2;
+    *ns += *ns & 1;
+    *nf = o->nfreq ? o->nfreq : *ns / 2 + 1;
+    int mx = w > h ? w : h;
     /* Few angles: the FFT dominates, so a small grid (few_angle_grid) with
      * a wide kernel; many angles: the taps dominate (sigma 2, kw 4). */
-    double sigma = o.oversamp > 0 ? o.oversamp : nangles >= 60 ? 2.0 : 1.5;
-    if (!(o.oversamp > 0) && nangles < 60) {
-        ng0 = few_angle_grid(mx);
-        sigma = (double)ng0 / mx;
+    *ng0 = 0;
+    *sigma = o->oversamp > 0 ? o->oversamp : nangles >= 60 ? 2.0 : 1.5;
+    if (!(o->oversamp > 0) && nangles < 60) {
+        *ng0 = few_angle_grid(mx);
+        *sigma = (double)*ng0 / mx;
     }
-    int kw = o.kernel_bins ? o.kernel_bins : ng0 ? (sigma < 1.6 ? 8 : 6) : (sigma < 1.9 ? 6 : 4);
-    int up = o.bp_upsample ? o.bp_upsample : 1;
-    if (ns < 4 || nf < 1 || nf > ns / 2 + 1 || sigma < 1.2 || sigma > 4 ||
-        kw < 2 || kw > 8 || (up != 1 && up != 2 && up != 4)) {
-        sl_seterr(err, SL_EINVAL,
-                  "radon_new: bad options nproj %d nfreq %d oversamp %g "
-                  "kernel %d upsample %d", ns, nf, sigma, kw, up);
-        return NULL;
-    }
-    radon *r = calloc(1, sizeof *r);
-    radon_ws *pws = NULL;
-    if (!r) {
-        sl_seterr(err, SL_ENOMEM, "radon_new: out of memory");
-        return NULL;
-    }
-    r->w = w, r->h = h, r->nang = nangles, r->ns = ns, r->nf = nf;
-    r->o = o, r->kw = kw;
-    r->ng = ng0 ? ng0 : fft_size((int)ceil(sigma * mx));
-    if (r->ng < mx + kw)
-        r->ng = fft_size(mx + kw);
+    *kw = o->kernel_bins ? o->kernel_bins : *ng0 ? (*sigma < 1.6 ? 8 : 6) : (*sigma < 1.9 ? 6 : 4);
+    int up = o->bp_upsample ? o->bp_upsample : 1;
+    if (*ns < 4 || *nf < 1 || *nf > *ns / 2 + 1 || *sigma < 1.2 || *sigma > 4 ||
+        *kw < 2 || *kw > 8 || (up != 1 && up != 2 && up != 4))
+        return sl_seterr(err, SL_EINVAL, "radon_new: bad options nproj %d nfreq %d "
+                         "oversamp %g kernel %d upsample %d", *ns, *nf, *sigma, *kw, up);
+    return SL_OK;
+}
+
+/* Every table and buffer; ok stays 1 while each allocation succeeds. */
+static void radon_alloc_all(radon *r, radon_ws **pws, int *ok)
+{
+    int w = r->w, h = r->h, nangles = r->nang, nf = r->nf, kw = r->kw, ns = r->ns;
     size_t ng = (size_t)r->ng, nh = ng / 2 + 1, nsamp = (size_t)nangles * nf;
     size_t npix = (size_t)w * h;
-    unsigned flags = o.fftw_flags ? o.fftw_flags : FFTW_MEASURE;
-    int ok = 1;
-    r->cs = radon_alloc(nangles * sizeof *r->cs, 0, &ok);
-    r->sn = radon_alloc(nangles * sizeof *r->sn, 0, &ok);
-    r->xlo = radon_alloc(h * sizeof *r->xlo, 0, &ok);
-    r->xhi = radon_alloc(h * sizeof *r->xhi, 0, &ok);
-    r->deap_x = radon_alloc(w * sizeof *r->deap_x, 0, &ok);
-    r->deap_y = radon_alloc(h * sizeof *r->deap_y, 0, &ok);
-    r->rowf = radon_alloc(h * sizeof *r->rowf, 0, &ok);
-    r->tx0 = radon_alloc(nsamp * sizeof *r->tx0, 0, &ok);
-    r->ty0 = radon_alloc(nsamp * sizeof *r->ty0, 0, &ok);
-    r->tconj = radon_alloc(nsamp, 0, &ok);
-    r->twx = radon_alloc(nsamp * kw * sizeof *r->twx, 0, &ok);
-    r->twy = radon_alloc(nsamp * kw * sizeof *r->twy, 0, &ok);
-    r->dens = radon_alloc(nf * sizeof *r->dens, 0, &ok);
-    r->it_x = radon_alloc(npix * sizeof *r->it_x, 0, &ok);
-    r->it_z = radon_alloc(npix * sizeof *r->it_z, 0, &ok);
-    r->it_g = radon_alloc(npix * sizeof *r->it_g, 0, &ok);
-    r->it_spec = radon_alloc(nsamp * sizeof *r->it_spec, 0, &ok);
+    r->cs = radon_alloc(nangles * sizeof *r->cs, 0, ok);
+    r->sn = radon_alloc(nangles * sizeof *r->sn, 0, ok);
+    r->xlo = radon_alloc(h * sizeof *r->xlo, 0, ok);
+    r->xhi = radon_alloc(h * sizeof *r->xhi, 0, ok);
+    r->deap_x = radon_alloc(w * sizeof *r->deap_x, 0, ok);
+    r->deap_y = radon_alloc(h * sizeof *r->deap_y, 0, ok);
+    r->rowf = radon_alloc(h * sizeof *r->rowf, 0, ok);
+    r->tx0 = radon_alloc(nsamp * sizeof *r->tx0, 0, ok);
+    r->ty0 = radon_alloc(nsamp * sizeof *r->ty0, 0, ok);
+    r->tconj = radon_alloc(nsamp, 0, ok);
+    r->twx = radon_alloc(nsamp * kw * sizeof *r->twx, 0, ok);
+    r->twy = radon_alloc(nsamp * kw * sizeof *r->twy, 0, ok);
+    r->dens = radon_alloc(nf * sizeof *r->dens, 0, ok);
+    r->it_x = radon_alloc(npix * sizeof *r->it_x, 0, ok);
+    r->it_z = radon_alloc(npix * sizeof *r->it_z, 0, ok);
+    r->it_g = radon_alloc(npix * sizeof *r->it_g, 0, ok);
+    r->it_spec = radon_alloc(nsamp * sizeof *r->it_spec, 0, ok);
     /* FFTW buffers (aligned); complex ones are interleaved float pairs. */
     r->spad = kw;
     r->ld = r->ng + 2 * kw;
-    /* planned on a scratch radon_ws, freed below; radon_slices makes the
-     * handle's own on first use (tsm brings one per thread) */
-    pws = radon_ws_new(r, NULL);
-    ok &= pws != NULL;
-    r->grid_out = radon_alloc((size_t)h * ng * sizeof(float), 1, &ok);
-    r->gspec = radon_alloc(ng * nh * 2 * sizeof(float), 1, &ok);
-    r->p_in = radon_alloc(ns * sizeof(float), 1, &ok);
-    r->p_spec = radon_alloc((ns / 2 + 1) * 2 * sizeof(float), 1, &ok);
-    if (!ok) {
-        sl_seterr(err, SL_ENOMEM, "radon_new: out of memory (%dx%d, %d angles)",
-                  w, h, nangles);
-        goto fail_free;
-    }
-    /* Plans.  Out-of-place r2c and c2c keep their input (so the zero rows
-     * and columns stay zero); the c2r ones destroy theirs, a scratch.
-     * Forward: frame rows y >= h/2 (block a) to ky rows 0.., rows y < h/2
-     * (block b) to ng - h/2..; column-major output, column stride ld. */
+    /* planned on a scratch radon_ws, freed by the caller; radon_slices
+     * makes the handle's own on first use (tsm brings one per thread) */
+    *pws = radon_ws_new(r, NULL);
+    *ok &= *pws != NULL;
+    r->grid_out = radon_alloc((size_t)h * ng * sizeof(float), 1, ok);
+    r->gspec = radon_alloc(ng * nh * 2 * sizeof(float), 1, ok);
+    r->p_in = radon_alloc(ns * sizeof(float), 1, ok);
+    r->p_spec = radon_alloc((ns / 2 + 1) * 2 * sizeof(float), 1, ok);
+}
+
+/* The FFT plans.  Out-of-place r2c and c2c keep their input (so the zero
+ * rows and columns stay zero); the c2r ones destroy theirs, a scratch.
+ * Forward: frame rows y >= h/2 (block a) to ky rows 0.., rows y < h/2
+ * (block b) to ng - h/2..; column-major output, column stride ld. */
+static int radon_plan_ffts(radon *r, radon_ws *pws, unsigned flags)
+{
+    size_t ng = (size_t)r->ng, nh = ng / 2 + 1;
+    int h = r->h, kw = r->kw, ns = r->ns;
     int n1 = (int)ng, hb = h - h / 2, ha = h / 2, inh = (int)nh, ild = r->ld;
     fftwf_complex *gs = (fftwf_complex *)r->gspec;
     fftwf_complex *wr = (fftwf_complex *)pws->rows, *wsp = (fftwf_complex *)pws->spec;
@@ -306,13 +297,15 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
                                          r->grid_out, NULL, 1, n1, flags);
     r->p_r2c = fftwf_plan_dft_r2c_1d(ns, r->p_in, (fftwf_complex *)r->p_spec, flags);
     r->p_c2r = fftwf_plan_dft_c2r_1d(ns, (fftwf_complex *)r->p_spec, r->p_in, flags);
-    if (!r->rows_a || !r->rows_b || !r->cols_fwd || !r->cols_inv ||
-        !r->irows_a || !r->irows_b || !r->p_r2c || !r->p_c2r) {
-        sl_seterr(err, SL_ENOMEM, "radon_new: FFTW planning failed");
-        goto fail_free;
-    }
-    radon_ws_free(pws);
-    pws = NULL;
+    return r->rows_a && r->rows_b && r->cols_fwd && r->cols_inv && r->irows_a &&
+           r->irows_b && r->p_r2c && r->p_c2r;
+}
+
+/* The angles' cosines and sines, and each row's extent inside the disc
+ * of diameter ns. */
+static void radon_geometry(radon *r)
+{
+    int w = r->w, h = r->h, nangles = r->nang;
     for (int k = 0; k < nangles; k++) {
         double th = radon_angle_rad(r, k);
         r->cs[k] = cos(th);
@@ -321,7 +314,7 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
     /* Exact zeros at the axes keep theta = 0, 90 bit-exact. */
     if (nangles % 2 == 0)
         r->cs[nangles / 2] = 0.0;
-    double R = 0.5 * ns;
+    double R = 0.5 * r->ns;
     for (int y = 0; y < h; y++) {
         double Y = y - h / 2, hw = R * R - Y * Y;
         int lo = w, hi = -1;
@@ -333,19 +326,64 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
         }
         r->xlo[y] = lo, r->xhi[y] = hi;
     }
+}
+
+/* Gridding weights: polar area element |rho| drho dtheta; the disc |rho|
+ * < drho/2 for j = 0, shared by the angles and halved because the sample
+ * is also spread at -k. */
+static void radon_density(radon *r)
+{
+    double fc = r->o.window_cut_cyc_px > 0 ? r->o.window_cut_cyc_px : 0.5;
+    int ns = r->ns;
+    for (int j = 0; j < r->nf; j++) {
+        double rho = (double)j / ns, a = M_PI / ((double)r->nang * ns);
+        double d = j ? a * rho : a / (8.0 * ns);
+        r->dens[j] = (float)(d * radon_window_gain(r->o.window, rho, fc));
+    }
+}
+
+radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
+                 sl_err *err)
+{
+    radon_opts o;
+    if (opts)
+        o = *opts;
+    else
+        radon_opts_default(&o);
+    int ns = 0, nf = 0, kw = 0, ng0 = 0;
+    double sigma = 0;
+    if (radon_plan_sizes(w, h, nangles, &o, &ns, &nf, &sigma, &kw, &ng0, err) != SL_OK)
+        return NULL;
+    radon *r = calloc(1, sizeof *r);
+    radon_ws *pws = NULL;
+    if (!r) {
+        sl_seterr(err, SL_ENOMEM, "radon_new: out of memory");
+        return NULL;
+    }
+    int mx = w > h ? w : h, ok = 1;
+    r->w = w, r->h = h, r->nang = nangles, r->ns = ns, r->nf = nf;
+    r->o = o, r->kw = kw;
+    r->ng = ng0 ? ng0 : fft_size((int)ceil(sigma * mx));
+    if (r->ng < mx + kw)
+        r->ng = fft_size(mx + kw);
+    radon_alloc_all(r, &pws, &ok);
+    if (!ok) {
+        sl_seterr(err, SL_ENOMEM, "radon_new: out of memory (%dx%d, %d angles)",
+                  w, h, nangles);
+        goto fail_free;
+    }
+    if (!radon_plan_ffts(r, pws, o.fftw_flags ? o.fftw_flags : FFTW_MEASURE)) {
+        sl_seterr(err, SL_ENOMEM, "radon_new: FFTW planning failed");
+        goto fail_free;
+    }
+    radon_ws_free(pws);
+    pws = NULL;
+    radon_geometry(r);
     r->sp = radon_spatial_new(w, h, nangles, ns, &o, r->cs, r->sn, r->xlo, r->xhi, err);
     if (!r->sp)
         goto fail_free;
     setup_nufft(r, sigma);
-    double fc = o.window_cut_cyc_px > 0 ? o.window_cut_cyc_px : 0.5;
-    /* Gridding weights: polar area element |rho| drho dtheta; the disc
-     * |rho| < drho/2 for j = 0, shared by the angles and halved because
-     * the sample is also spread at -k. */
-    for (int j = 0; j < nf; j++) {
-        double rho = (double)j / ns, a = M_PI / ((double)nangles * ns);
-        double d = j ? a * rho : a / (8.0 * ns);
-        r->dens[j] = (float)(d * radon_window_gain(o.window, rho, fc));
-    }
+    radon_density(r);
     return r;
 fail_free:
     radon_ws_free(pws);

@@ -389,57 +389,69 @@ static void state(binary_result *out, const double d[2], double cx,
         out->sep_px * 180.0 / M_PI;
 }
 
-int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
+/* The image less its median in p->img, the brightest pixel's
+ * interpolated position and the core radius, the spectrum's kept
+ * frequencies; SL_EDATA when no signal. */
+typedef struct primary {
+    double bg, peak, x1, y1, noise2;
+    int rc;
+} primary;
+
+static int find_primary(binary_plan *p, const float *img, primary *q)
 {
-    if (!p || !img || !out)
-        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
-                         "binary_measure: NULL argument");
     int w = p->w, h = p->h;
     size_t n = (size_t)w * h;
-    binary_fit *f = &p->f;
-    memset(out, 0, sizeof *out);
     for (size_t i = 0; i < n; i++)
         if (!isfinite(img[i]))
             return sl_seterr(&p->err, SL_EDATA,
                              "binary_measure: pixel (%zu, %zu) is not finite",
                              i % (size_t)w, i / (size_t)w);
     memcpy(p->scratch, img, n * sizeof *img);
-    double bg = median(p->scratch, n);
+    q->bg = median(p->scratch, n);
     size_t i1 = 0;
     for (size_t i = 0; i < n; i++) {
-        p->img[i] = img[i] - bg;
+        p->img[i] = img[i] - q->bg;
         if (img[i] > img[i1])
             i1 = i;
     }
     int cx = (int)(i1 % (size_t)w), cy = (int)(i1 / (size_t)w);
-    int rc = core_radius(p->img, w, h, cx, cy);
-    double ox, oy, peak = p->img[i1];
+    q->rc = core_radius(p->img, w, h, cx, cy);
+    double ox, oy;
+    q->peak = p->img[i1];
     parabolic(p->img, w, h, cx, cy, &ox, &oy);
-    double x1 = cx + ox, y1 = cy + oy;
+    q->x1 = cx + ox, q->y1 = cy + oy;
     fftw_execute(p->fwd);
-    double noise2 = select_freqs(p);
-    if (f->m < 4 * NPAR || !(peak > 0))
-        return sl_seterr(&p->err, SL_EDATA,
-                         "binary_measure: no signal above the noise");
+    q->noise2 = select_freqs(p);
+    if (p->f.m < 4 * NPAR || !(q->peak > 0))
+        return sl_seterr(&p->err, SL_EDATA, "binary_measure: no signal above the noise");
+    return SL_OK;
+}
 
+/* Candidates (the image's maxima and the antisymmetric part's), the best
+ * one fitted to convergence with the fainter as companion: th, cost. */
+static int fit_companion(binary_plan *p, const primary *q, double th[NPAR],
+                         double *cost)
+{
+    int w = p->w, h = p->h;
+    binary_fit *f = &p->f;
     cand c[2 * NCAND];
     int nc = 0;
-    find_maxima(p->img, w, h, x1, y1, rc, c, &nc);
+    find_maxima(p->img, w, h, q->x1, q->y1, q->rc, c, &nc);
     int nraw = nc;
-    antisymmetric(p, x1, y1);
-    find_maxima(p->anti, w, h, 0, 0, rc, c, &nc);
+    antisymmetric(p, q->x1, q->y1);
+    find_maxima(p->anti, w, h, 0, 0, q->rc, c, &nc);
     for (int k = nraw; k < nc; k++) { /* offsets -> positions */
-        c[k].x = x1 + remainder(c[k].x, w);
-        c[k].y = y1 + remainder(c[k].y, h);
+        c[k].x = q->x1 + remainder(c[k].x, w);
+        c[k].y = q->y1 + remainder(c[k].y, h);
     }
-    double th[NPAR] = {0};
+    memset(th, 0, NPAR * sizeof *th);
     f->odd = 0;
-    if (!isfinite(choose(p, c, nc, nraw, x1, y1, peak, rc,
-                         0.5 * noise2 * f->m, th)))
+    if (!isfinite(choose(p, c, nc, nraw, q->x1, q->y1, q->peak, q->rc,
+                         0.5 * q->noise2 * f->m, th)))
         return sl_seterr(&p->err, SL_EDATA, "binary_measure: no second "
-                         "component beyond the core (%d px)", rc);
+                         "component beyond the core (%d px)", q->rc);
     f->odd = 1;
-    double cost = binary_fit_lm(f, th, FINAL_ITERS);
+    *cost = binary_fit_lm(f, th, FINAL_ITERS);
     if (th[4] > 0) { /* state it with the fainter as the companion */
         th[0] += th[2];
         th[1] += th[3];
@@ -447,18 +459,20 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
         th[3] = -th[3];
         th[4] = -th[4];
     }
-    double C[NPAR * NPAR];
-    binary_fit_cov(f, th, C);
-    double r = exp(th[4]), sr = r * sqrt(C[4 * NPAR + 4]);
-    out->pa_ambiguous = !(1.0 - r > fmax(2.0 * sr, 1e-6));
+    return SL_OK;
+}
 
-    /* d: the fit's, or the interpolated peaks' (all frequencies), whichever
-     * has the smaller expected squared error: the fit's covariance trace
-     * against the peaks' noise plus their squared bias, the bias being the
-     * projected model's peaks less its true (the fitted) positions.  At r
-     * ~ 1 the fit has no d and its model no meaningful bias: peaks, noise
-     * only. */
-    double d[2] = {th[2], th[3]}, s1[2] = {th[0], th[1]}, H1[3], c1[3];
+/* d: the fit's, or the interpolated peaks' (all frequencies), whichever
+ * has the smaller expected squared error: the fit's covariance trace
+ * against the peaks' noise plus their squared bias, the bias being the
+ * projected model's peaks less its true (the fitted) positions.  At r ~ 1
+ * the fit has no d and its model no meaningful bias: peaks, noise only.
+ * d and cd (its covariance xx, xy, yy) in, replaced when the peaks win. */
+static int choose_d(binary_plan *p, const primary *q, const double th[NPAR],
+                    double cost, int ambiguous, double d[2], double cd[3])
+{
+    binary_fit *f = &p->f;
+    double s1[2] = {th[0], th[1]}, H1[3], c1[3];
     double s2[2] = {th[0] + d[0], th[1] + d[1]}, H2[3], c2[3], Hm[3];
     double m1[2] = {s1[0], s1[1]}, m2[2] = {s2[0], s2[1]};
     binary_fit_peak(f, f->bs, f->nall, s1, H1);
@@ -466,25 +480,46 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
     binary_fit_project(f, th);
     binary_fit_peak(f, f->bmod, f->m, m1, Hm);
     binary_fit_peak(f, f->bmod, f->m, m2, Hm);
-    double var_i = fmax(noise2, f->m > NPAR ? 2 * cost / (f->m - NPAR) : 0);
+    double var_i = fmax(q->noise2, f->m > NPAR ? 2 * cost / (f->m - NPAR) : 0);
     binary_fit_peak_cov(f, f->nall, H1, var_i, c1);
     binary_fit_peak_cov(f, f->nall, H2, var_i, c2);
     double bx = (m2[0] - m1[0]) - d[0], by = (m2[1] - m1[1]) - d[1];
     double pk[3] = {c1[0] + c2[0], c1[1] + c2[1], c1[2] + c2[2]};
-    double cd[3] = {C[2 * NPAR + 2], C[2 * NPAR + 3], C[3 * NPAR + 3]};
     double dp[2] = {s2[0] - s1[0], s2[1] - s1[1]};
-    double mx = th[0] + 0.5 * d[0], my = th[1] + 0.5 * d[1];
-    if (!out->pa_ambiguous) {
+    if (!ambiguous) {
         pk[0] += bx * bx;
         pk[1] += bx * by;
         pk[2] += by * by;
     }
-    if (hypot(dp[0], dp[1]) > rc + 1 &&
-        (out->pa_ambiguous || !(cd[0] + cd[2] <= pk[0] + pk[2]))) {
-        memcpy(d, dp, sizeof d);
-        memcpy(cd, pk, sizeof cd);
-        out->d_from_peaks = 1;
+    if (hypot(dp[0], dp[1]) > q->rc + 1 &&
+        (ambiguous || !(cd[0] + cd[2] <= pk[0] + pk[2]))) {
+        memcpy(d, dp, 2 * sizeof *d);
+        memcpy(cd, pk, 3 * sizeof *cd);
+        return 1;
     }
+    return 0;
+}
+
+int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
+{
+    if (!p || !img || !out)
+        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
+                         "binary_measure: NULL argument");
+    int w = p->w, h = p->h, rc;
+    binary_fit *f = &p->f;
+    memset(out, 0, sizeof *out);
+    primary q = {0};
+    double th[NPAR] = {0}, cost = 0;
+    if ((rc = find_primary(p, img, &q)) != SL_OK || (rc = fit_companion(p, &q, th, &cost)) != SL_OK)
+        return rc;
+    double C[NPAR * NPAR];
+    binary_fit_cov(f, th, C);
+    double r = exp(th[4]), sr = r * sqrt(C[4 * NPAR + 4]);
+    out->pa_ambiguous = !(1.0 - r > fmax(2.0 * sr, 1e-6));
+    double d[2] = {th[2], th[3]};
+    double cd[3] = {C[2 * NPAR + 2], C[2 * NPAR + 3], C[3 * NPAR + 3]};
+    double mx = th[0] + 0.5 * d[0], my = th[1] + 0.5 * d[1];
+    out->d_from_peaks = choose_d(p, &q, th, cost, out->pa_ambiguous, d, cd);
     /* The stated errors take the residuals' correlation (residual_cov),
      * never below the white-noise ones; the choices above (ambiguity, d's
      * source) and the significance test below keep the white-noise ones,
@@ -503,10 +538,10 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
     out->flux_ratio_err = sr * sqrt(kr);
     out->dm_err_mag = 2.5 / M_LN10 * sqrt(C[4 * NPAR + 4] * kr);
     out->err_inflation = kd;
-    out->background = bg;
-    out->noise = sqrt(noise2 / (double)n);
+    out->background = q.bg;
+    out->noise = sqrt(q.noise2 / ((double)w * h));
     out->nfreq = f->m;
-    out->fit_rms = noise2 > 0 ? sqrt(cost / f->m / (0.5 * noise2)) : NAN;
+    out->fit_rms = q.noise2 > 0 ? sqrt(cost / f->m / (0.5 * q.noise2)) : NAN;
     if (r < 1e-4 || r < 3.0 * sr)   /* sr: the uninflated error */
         return sl_seterr(&p->err, SL_EDATA, "binary_measure: no significant "
                          "companion (flux ratio %.3g +- %.2g)", r, sr);

@@ -193,101 +193,114 @@ static int only_space(const char *s)
     return s[strspn(s, " \t\r\n\v\f")] == '\0';
 }
 
-int mask_read(mask **out, const char *path, sl_err *err)
+/* What mask_read has read so far: the diameter (NAN until its line) and
+ * the holes with their line numbers (fixed capacity, 5 KB). */
+typedef struct mask_text {
+    const char *path;
+    double d;
+    double x[MASK_MAX_HOLES], y[MASK_MAX_HOLES];
+    int lines[MASK_MAX_HOLES], n;
+} mask_text;
+
+static const char mask_key[] = "hole_diameter_m";
+
+/* The "hole_diameter_m <metres>" line, p after the key. */
+static int read_diameter(mask_text *t, const char *p, int lineno, sl_err *err)
 {
-    static const char key[] = "hole_diameter_m";
-    const size_t klen = sizeof key - 1;
-    int rc = SL_OK, lineno = 0, n = 0;
-    double d = NAN, v[2] = {0, 0};
+    if (!isnan(t->d))
+        return sl_seterr(err, SL_EFORMAT, "%s:%d: second '%s' line", t->path,
+                         lineno, mask_key);
+    if (parse_num(&p, &t->d) || !only_space(p))
+        return sl_seterr(err, SL_EFORMAT, "%s:%d: expected '%s <metres>'",
+                         t->path, lineno, mask_key);
+    if (!(isfinite(t->d) && t->d > 0))
+        return sl_seterr(err, SL_EDATA, "%s:%d: hole diameter %g is not a "
+                         "finite number > 0", t->path, lineno, t->d);
+    return SL_OK;
+}
+
+/* An "x_m y_m" line (line: the whole text, for the message). */
+static int read_hole(mask_text *t, const char *p, const char *line,
+                     int lineno, sl_err *err)
+{
+    double v[2] = {0, 0};
+    if (parse_num(&p, &v[0]) || parse_num(&p, &v[1]) || !only_space(p))
+        return sl_seterr(err, SL_EFORMAT, "%s:%d: expected 'x_m y_m' (two "
+                         "numbers) or '%s <metres>', got '%s'", t->path,
+                         lineno, mask_key, line);
+    if (!isfinite(v[0]) || !isfinite(v[1]))
+        return sl_seterr(err, SL_EDATA, "%s:%d: hole centre is not a finite "
+                         "number", t->path, lineno);
+    if (isnan(t->d))
+        return sl_seterr(err, SL_EFORMAT, "%s:%d: hole given before the "
+                         "required '%s' line", t->path, lineno, mask_key);
+    if (t->n == MASK_MAX_HOLES)
+        return sl_seterr(err, SL_ERANGE, "%s:%d: more than %d holes", t->path,
+                         lineno, MASK_MAX_HOLES);
+    t->x[t->n] = v[0];
+    t->y[t->n] = v[1];
+    t->lines[t->n++] = lineno;
+    return SL_OK;
+}
+
+/* Every line of f into t; the line count in *lineno. */
+static int read_lines(mask_text *t, FILE *f, int *lineno, sl_err *err)
+{
+    const size_t klen = sizeof mask_key - 1;
     char *buf = NULL;
     size_t bufsz = 0;
-    *out = NULL;
-    /* fixed capacity, 5 KB: no growth logic */
-    double *x = malloc(MASK_MAX_HOLES * sizeof *x);
-    double *y = malloc(MASK_MAX_HOLES * sizeof *y);
-    int *lines = malloc(MASK_MAX_HOLES * sizeof *lines);
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        rc = sl_seterr(err, SL_EIO, "%s: cannot open: %s", path,
-                       strerror(errno));
-        goto done;
-    }
-    if (!x || !y || !lines) {
-        rc = sl_seterr(err, SL_ENOMEM, "%s: out of memory", path);
-        goto done;
-    }
-    while (getline(&buf, &bufsz, f) >= 0) {
-        lineno++;
+    int rc = SL_OK;
+    while (rc == SL_OK && getline(&buf, &bufsz, f) >= 0) {
+        (*lineno)++;
         buf[strcspn(buf, "#\r\n")] = '\0'; /* comment, line end */
         if (only_space(buf))
             continue;
         const char *p = buf + strspn(buf, " \t");
         /* the key, then a blank or the line's end ('\0' is in the set) */
-        if (strncmp(p, key, klen) == 0 && strchr(" \t", p[klen])) {
-            p += klen;
-            if (!isnan(d))
-                rc = sl_seterr(err, SL_EFORMAT, "%s:%d: second '%s' line",
-                               path, lineno, key);
-            else if (parse_num(&p, &d) || !only_space(p))
-                rc = sl_seterr(err, SL_EFORMAT,
-                               "%s:%d: expected '%s <metres>'", path, lineno,
-                               key);
-            else if (!(isfinite(d) && d > 0))
-                rc = sl_seterr(err, SL_EDATA,
-                               "%s:%d: hole diameter %g is not a finite "
-                               "number > 0",
-                               path, lineno, d);
-            if (rc)
-                goto done;
-            continue;
-        }
-        if (parse_num(&p, &v[0]) || parse_num(&p, &v[1]) || !only_space(p))
-            rc = sl_seterr(err, SL_EFORMAT,
-                           "%s:%d: expected 'x_m y_m' (two numbers) or "
-                           "'%s <metres>', got '%s'",
-                           path, lineno, key, buf);
-        else if (!isfinite(v[0]) || !isfinite(v[1]))
-            rc = sl_seterr(err, SL_EDATA,
-                           "%s:%d: hole centre is not a finite number", path,
-                           lineno);
-        else if (isnan(d))
-            rc = sl_seterr(err, SL_EFORMAT,
-                           "%s:%d: hole given before the required '%s' line",
-                           path, lineno, key);
-        else if (n == MASK_MAX_HOLES)
-            rc = sl_seterr(err, SL_ERANGE, "%s:%d: more than %d holes", path,
-                           lineno, MASK_MAX_HOLES);
-        if (rc)
-            goto done;
-        x[n] = v[0];
-        y[n] = v[1];
-        lines[n++] = lineno;
+        if (strncmp(p, mask_key, klen) == 0 && strchr(" \t", p[klen]))
+            rc = read_diameter(t, p + klen, *lineno, err);
+        else
+            rc = read_hole(t, p, buf, *lineno, err);
     }
+    free(buf);
+    return rc;
+}
+
+int mask_read(mask **out, const char *path, sl_err *err)
+{
+    int rc = SL_OK, lineno = 0;
+    *out = NULL;
+    mask_text *t = calloc(1, sizeof *t);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        rc = sl_seterr(err, SL_EIO, "%s: cannot open: %s", path, strerror(errno));
+        goto done;
+    }
+    if (!t) {
+        rc = sl_seterr(err, SL_ENOMEM, "%s: out of memory", path);
+        goto done;
+    }
+    t->path = path;
+    t->d = NAN;
+    if ((rc = read_lines(t, f, &lineno, err)) != SL_OK)
+        goto done;
     if (ferror(f))
         rc = sl_seterr(err, SL_EIO, "%s:%d: read error", path, lineno);
-    else if (isnan(d))
-        rc = sl_seterr(err, SL_EFORMAT,
-                       "%s:%d: end of file without the required '%s' line",
-                       path, lineno, key);
-    else if (n < 2)
-        rc = sl_seterr(err, SL_EFORMAT,
-                       "%s:%d: end of file after %d hole%s; a mask needs at "
-                       "least 2",
-                       path, lineno, n, n == 1 ? "" : "s");
+    else if (isnan(t->d))
+        rc = sl_seterr(err, SL_EFORMAT, "%s:%d: end of file without the "
+                       "required '%s' line", path, lineno, mask_key);
+    else if (t->n < 2)
+        rc = sl_seterr(err, SL_EFORMAT, "%s:%d: end of file after %d hole%s; "
+                       "a mask needs at least 2", path, lineno, t->n,
+                       t->n == 1 ? "" : "s");
     else
-        rc = check_holes(x, y, n, d, lines, path, err);
-    if (rc)
-        goto done;
-    *out = make_holes(x, y, n, d, err);
-    if (!*out)
+        rc = check_holes(t->x, t->y, t->n, t->d, t->lines, path, err);
+    if (rc == SL_OK && !(*out = make_holes(t->x, t->y, t->n, t->d, err)))
         rc = SL_ENOMEM;
 done:
     if (f)
         fclose(f);
-    free(buf);
-    free(x);
-    free(y);
-    free(lines);
+    free(t);
     return rc;
 }
 

@@ -129,6 +129,85 @@ free_scratch:
     return st;
 }
 
+/* Angles, projection length and cut-off bins J from o; SL_EINVAL (in
+ * err) naming the parameters when they do not make a TSM. */
+static int tsm_check(int w, int h, const tsm_opts *o, int *nang, int *ns,
+                     int *J, sl_err *err)
+{
+    *nang = o->nangles ? o->nangles : 180;
+    *ns = o->nproj ? o->nproj : (w > h ? w : h);
+    *ns += *ns & 1;
+    double cut = o->cutoff_cyc_px > 0 ? o->cutoff_cyc_px : 0.5;
+    *J = (int)floor(cut * *ns + 1e-9);
+    *J = *J > *ns / 2 ? *ns / 2 : *J;
+    int batch = o->batch ? o->batch : 8;
+    if (w < 8 || h < 8 || *nang < 1 || *J < 3 || o->r2_bins < 0 || batch < 1 ||
+        batch > 1024 || o->threads < 0 || o->threads > 64 ||
+        o->variant < TSM_FOURIER || o->variant > TSM_SPATIAL ||
+        !(o->photons_per_frame >= 0) || !(o->read_noise_adu >= 0) ||
+        o->bias < TSM_BIAS_AUTO || o->bias > TSM_BIAS_FLOOR ||
+        (o->bias == TSM_BIAS_PHOTON && !(o->photons_per_frame > 0)))
+        return sl_seterr(err, SL_EINVAL,
+                         "tsm_new: bad parameters (%dx%d, %d angles, cut-off %d bins, "
+                         "r2 %d, batch %d, %d threads, variant %d, bias %d with %g photons, "
+                         "read noise %g)", w, h, *nang, *J, o->r2_bins, batch, o->threads,
+                         (int)o->variant, (int)o->bias, o->photons_per_frame,
+                         o->read_noise_adu);
+    return SL_OK;
+}
+
+/* The projector, the phase solver, the thread team and the accumulator. */
+static int tsm_parts(tsm *t, sl_err *err)
+{
+    const tsm_opts *o = &t->o;
+    radon_opts ro;
+    radon_opts_default(&ro);
+    ro.nproj = t->ns;
+    ro.nfreq = t->nf;
+    ro.oversamp = o->oversamp;
+    ro.kernel_bins = o->kernel_bins;
+    ro.window = o->window;
+    ro.window_cut_cyc_px = (double)(t->nf - 1) / t->ns;
+    ro.spatial = o->variant == TSM_SPATIAL;
+    ro.threads = o->threads > 0 ? o->threads : tpool_default_threads();
+    ro.fftw_flags = o->fftw_flags;
+    if (!(t->rad = radon_new(t->w, t->h, t->nang, &ro, err)) ||
+        !(t->ph = tsm_phase_new(t->nang, t->nf, o->r2_bins, err)))
+        return SL_EINVAL;
+    t->np = tsm_phase_npairs(t->ph);
+    t->off = tsm_phase_rowoff(t->ph);
+    t->len = tsm_phase_rowlen(t->ph);
+    if (!(t->pool = tpool_new(o->threads, err)))
+        return SL_ENOMEM;
+    if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK)
+        return sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
+    t->acc = tsm_accum_new(o->variant == TSM_FOURIER ? t->rad : NULL, t->w, t->h, t->nang,
+                           t->nf, t->off, t->len, t->np, o->batch ? o->batch : 8, t->pool, err);
+    return t->acc ? SL_OK : SL_ENOMEM;
+}
+
+/* The result's buffers, from one table (zeroed ones where a first use
+ * reads them). */
+static int tsm_buffers(tsm *t, sl_err *err)
+{
+    size_t nsp = (size_t)t->nang * t->nf;
+    const struct { void **slot; size_t bytes; int zero; } bufs[] = {
+        {(void **)&t->proj, (size_t)t->nang * t->ns * sizeof *t->proj, 0},
+        {(void **)&t->pr, 2 * (size_t)t->nf * sizeof *t->pr, 0},
+        {(void **)&t->ref, nsp * sizeof *t->ref, 0},
+        {(void **)&t->tgt, nsp * sizeof *t->tgt, 0},
+        {(void **)&t->phase, nsp * sizeof *t->phase, 1},
+        {(void **)&t->psc, nsp * sizeof *t->psc, 0},
+        {(void **)&t->ospec, nsp * sizeof *t->ospec, 1},
+        {(void **)&t->sref, nsp * sizeof *t->sref, 1},
+        {(void **)&t->pw, nsp * sizeof *t->pw, 0}};
+    for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)
+        if (!(*bufs[i].slot = bufs[i].zero ? calloc(1, bufs[i].bytes) : malloc(bufs[i].bytes)))
+            return sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (%zu bispectrum "
+                             "elements)", (size_t)t->nang * t->np);
+    return SL_OK;
+}
+
 tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
 {
     tsm_opts o;
@@ -136,27 +215,9 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
         o = *opts;
     else
         tsm_opts_default(&o);
-    int nang = o.nangles ? o.nangles : 180;
-    int ns = o.nproj ? o.nproj : (w > h ? w : h);
-    ns += ns & 1;
-    double cut = o.cutoff_cyc_px > 0 ? o.cutoff_cyc_px : 0.5;
-    int J = (int)floor(cut * ns + 1e-9);
-    if (J > ns / 2)
-        J = ns / 2;
-    int batch = o.batch ? o.batch : 8;
-    if (w < 8 || h < 8 || nang < 1 || J < 3 || o.r2_bins < 0 || batch < 1 ||
-        batch > 1024 || o.threads < 0 || o.threads > 64 ||
-        o.variant < TSM_FOURIER || o.variant > TSM_SPATIAL ||
-        !(o.photons_per_frame >= 0) || !(o.read_noise_adu >= 0) ||
-        o.bias < TSM_BIAS_AUTO || o.bias > TSM_BIAS_FLOOR ||
-        (o.bias == TSM_BIAS_PHOTON && !(o.photons_per_frame > 0))) {
-        sl_seterr(err, SL_EINVAL,
-                  "tsm_new: bad parameters (%dx%d, %d angles, cut-off %d bins, "
-                  "r2 %d, batch %d, %d threads, variant %d, bias %d with %g photons, "
-                  "read noise %g)", w, h, nang, J, o.r2_bins, batch, o.threads, (int)o.variant,
-                  (int)o.bias, o.photons_per_frame, o.read_noise_adu);
+    int nang, ns, J;
+    if (tsm_check(w, h, &o, &nang, &ns, &J, err) != SL_OK)
         return NULL;
-    }
     tsm *t = calloc(1, sizeof *t);
     if (!t) {
         sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory");
@@ -164,52 +225,11 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     }
     t->w = w, t->h = h, t->nang = nang, t->ns = ns, t->nf = J + 1;
     t->o = o;
-    radon_opts ro;
-    radon_opts_default(&ro);
-    ro.nproj = ns;
-    ro.nfreq = t->nf;
-    ro.oversamp = o.oversamp;
-    ro.kernel_bins = o.kernel_bins;
-    ro.window = o.window;
-    ro.window_cut_cyc_px = (double)J / ns;
-    ro.spatial = o.variant == TSM_SPATIAL;
-    ro.threads = o.threads > 0 ? o.threads : tpool_default_threads();
-    ro.fftw_flags = o.fftw_flags;
-    t->rad = radon_new(w, h, nang, &ro, err);
-    if (!t->rad)
-        goto fail_free;
-    t->ph = tsm_phase_new(nang, t->nf, o.r2_bins, err);
-    if (!t->ph)
-        goto fail_free;
-    t->np = tsm_phase_npairs(t->ph);
-    t->off = tsm_phase_rowoff(t->ph);
-    t->len = tsm_phase_rowlen(t->ph);
-    if (!(t->pool = tpool_new(o.threads, err)))
-        goto fail_free;
-    if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK) {
-        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
-        goto fail_free;
-    }
-    t->acc = tsm_accum_new(o.variant == TSM_FOURIER ? t->rad : NULL, w, h, nang, t->nf,
-                           t->off, t->len, t->np, batch, t->pool, err);
-    if (!t->acc)
+    if (tsm_parts(t, err) != SL_OK)
         goto fail_free;
     tsm_sync_sums(t);
-    size_t nb = (size_t)nang * t->np, nsp = (size_t)nang * t->nf;
-    t->proj = malloc((size_t)nang * ns * sizeof *t->proj);
-    t->pr = malloc(2 * t->nf * sizeof *t->pr);
-    t->ref = malloc(nsp * sizeof *t->ref);
-    t->tgt = malloc(nsp * sizeof *t->tgt);
-    t->phase = calloc(nsp, sizeof *t->phase);
-    t->psc = malloc(nsp * sizeof *t->psc);
-    t->ospec = calloc(nsp, sizeof *t->ospec);
-    t->sref = calloc(nsp, sizeof *t->sref);
-    t->pw = malloc(nsp * sizeof *t->pw);
-    if (!t->proj || !t->pr || !t->ref || !t->tgt || !t->phase || !t->psc ||
-        !t->ospec || !t->sref || !t->pw) {
-        sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (%zu bispectrum elements)", nb);
+    if (tsm_buffers(t, err) != SL_OK)
         goto fail_free;
-    }
     if (o.variant == TSM_SPATIAL && o.bias != TSM_BIAS_NONE &&
         noise_transfer(t, err) != SL_OK)
         goto fail_free;

@@ -21,6 +21,7 @@
 
 #include "io/cube.h"
 #include "cubefile.h"
+#include "framelog.h"
 #include "measure/seeing.h"
 
 #define POP_SLICE_MS 200        /* abort and loss are checked this often */
@@ -144,6 +145,9 @@ typedef struct acq {
     camera_stats base;         /* the handle's counters at the run's start */
     gint64 t_flush;
     progress_writer pw;        /* the catalogue's progress row */
+    framelog *fl;              /* the rows on disk (framelog.h), NULL once closed */
+    char *fl_path;
+    guint fl_logged;           /* rows already in it */
 } acq;
 
 /* This run's camera counters: the handle's totals carry over from run to
@@ -266,13 +270,32 @@ static void fill_meta(acq *a, cube_meta *m)
         cube_meta_set_num(m, "FRATE", a->cf.frame_rate_hz, "[Hz] frame rate setting");
 }
 
-/* Flush the cube, then tell subscribers: a progress event never counts a
- * frame that is not on disk. */
+/* Damaged frames a run tolerates before it fails. */
+static int max_failed(const runner *r, const runner_spec *sp)
+{
+    return r->cfg->max_failed_frames > 0 ? r->cfg->max_failed_frames : MAX(100, sp->frames);
+}
+
+/* Flush the cube, log the rows of the frames flushed (framelog.h), then
+ * tell subscribers: a progress event never counts a frame that is not on
+ * disk. */
 static int flush_progress(acq *a, sl_err *e)
 {
     if (cube_writer_flush(a->w) != SL_OK)
         return sl_seterr(e, SL_EIO, "%s", cube_writer_errmsg(a->w));
     a->t_flush = g_get_monotonic_time();
+    if (a->fl) {
+        sl_err le = {0};
+        const cubefile_row *rows = (const cubefile_row *)(void *)a->rows->data;
+        if (framelog_append(a->fl, rows + a->fl_logged, (long)(a->rows->len - a->fl_logged),
+                            &le) == SL_OK) {
+            a->fl_logged = a->rows->len;
+        } else {   /* only a restart's rebuild of the table would miss them */
+            g_warning("run %s: %s", a->sp->uuid, le.msg);
+            framelog_close(a->fl);
+            a->fl = NULL;
+        }
+    }
     runner_note_progress(a->r, a->stored);
     server_event_async(a->r->srv, a->sp->uuid,
                        proto_event_progress(a->sp->uuid, a->stored, a->sp->frames, a->failed));
@@ -286,8 +309,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
     const runner_spec *sp = a->sp;
     size_t npx = (size_t)a->cf.width * (size_t)a->cf.height;
     camera_frame fr = {.f32 = a->pix, .capacity_px = npx};
-    int max_failed = r->cfg->max_failed_frames > 0 ? r->cfg->max_failed_frames
-                                                   : MAX(100, sp->frames);
+    int max_fail = max_failed(r, sp);
     gint64 t_frame = g_get_monotonic_time(), t_db = t_frame;
     sl_err e = {0};
     if (camera_start(r->cam, r->cfg->buffers) != SL_OK) {
@@ -334,7 +356,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
             if (a->see)
                 seeing_add(a->see, a->pix);
             row.cube_idx = a->stored++;
-        } else if (++a->failed > max_failed) {
+        } else if (++a->failed > max_fail) {
             g_array_append_val(a->rows, row);
             snprintf(reason, rlen, "%d damaged frames (last %s) with %d of %d good: is the "
                      "link dropping packets?", a->failed,
@@ -392,9 +414,14 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
         if (end == ACQ_COMPLETE)
             snprintf(reason, rlen, "only %d of %d frames reached the disk", on_disk, a->stored),
                 end = ACQ_FAILED;
+        else   /* the reason counted the frames handed to the writer */
+            snprintf(reason + strlen(reason), rlen - strlen(reason), " (%d of them on disk)",
+                     on_disk);
     }
-    if (cubefile_frames_table(a->part, (const cubefile_row *)(void *)a->rows->data,
-                              (long)a->rows->len, r->cam ? &cs : NULL, &e) != SL_OK) {
+    framelog_close(a->fl);
+    a->fl = NULL;
+    if (framelog_table(a->part, a->fl_path, (cubefile_row *)(void *)a->rows->data,
+                       (long)a->rows->len, on_disk, r->cam ? &cs : NULL, &e) != SL_OK) {
         g_warning("run %s: %s", uuid, e.msg);
         if (end == ACQ_COMPLETE)
             snprintf(reason, rlen, "%s", e.msg), end = ACQ_FAILED;
@@ -465,9 +492,14 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     }
     fill_meta(&a, &meta);
     int bitpix = a.cf.pixel_format == CAMERA_PIX_MONO8 ? 8 : CUBE_BITPIX_U16;
+    /* The rows' sidecar first: it holds the room for the FRAMES table, and
+     * a run that cannot have it fails before it writes anything. */
+    a.fl_path = framelog_path(a.part);
+    int rc = framelog_create(&a.fl, a.fl_path, (long)sp->frames + max_failed(r, sp) + 2, &e);
     /* The file is catalogued before its first frame, so a crash at any
      * point leaves a run that names its partial cube. */
-    int rc = cube_writer_open(&a.w, a.part, a.cf.width, a.cf.height, bitpix, &meta, &e);
+    if (rc == SL_OK)
+        rc = cube_writer_open(&a.w, a.part, a.cf.width, a.cf.height, bitpix, &meta, &e);
     if (rc == SL_OK && cube_writer_flush(a.w) != SL_OK)
         rc = sl_seterr(&e, SL_EIO, "%s", cube_writer_errmsg(a.w));
     catlock_file cf = {sp->uuid, a.part, NULL, 0, 0, 0, 0};
@@ -479,6 +511,11 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     if (rc != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);
         cube_writer_free(a.w);
+        if (a.fl) {   /* no frame was taken: leave no file behind */
+            framelog_close(a.fl);
+            a.fl = NULL;
+            unlink(a.fl_path);
+        }
         runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
         goto free_acq;
     }
@@ -501,6 +538,8 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
             g_warning("run %s: recording r0: %s", sp->uuid, catalog_errmsg(r->cat));
     }
 free_acq:
+    framelog_close(a.fl);
+    g_free(a.fl_path);
     seeing_free(a.see);
     g_free(a.pix);
     g_array_free(a.rows, TRUE);

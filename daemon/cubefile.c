@@ -166,10 +166,24 @@ int cubefile_frames_table(const char *path, const cubefile_row *rows, long n,
                             &s);
         fits_update_key_lng(f, "NIDGAPS", (LONGLONG)st->id_gaps, "frame ids never delivered", &s);
     }
+    /* cfitsio does not always report a write its close could not finish
+     * (seen on a full tmpfs: the table's last bytes were dropped and the
+     * close returned 0), so the file's size is checked against the end
+     * of the table. */
+    LONGLONG head = 0, data = 0, end = 0, width = 0;
+    fits_get_hduaddrll(f, &head, &data, &end, &s);
+    fits_read_key_lnglng(f, "NAXIS1", &width, NULL, &s);
+    end = data + (width * (n > 0 ? n : 0) + BLOCK - 1) / BLOCK * BLOCK;
     int os_errno = errno;
     if (f) {
         int s2 = 0;
         fits_close_file(f, s ? &s2 : &s);
+    }
+    struct stat after;
+    int short_write = !s && (stat(path, &after) != 0 || after.st_size < (off_t)end);
+    if (short_write) {
+        s = WRITE_ERROR;
+        os_errno = ENOSPC;
     }
     int rc = SL_OK;
     if (s) {
@@ -186,6 +200,21 @@ int cubefile_frames_table(const char *path, const cubefile_row *rows, long n,
     g_free(names);
     g_free(idx);
     return rc;
+}
+
+int cubefile_has_table(const char *path)
+{
+    fitsfile *f = NULL;
+    int s = 0;
+    fits_open_diskfile(&f, path, READONLY, &s);
+    fits_movnam_hdu(f, BINARY_TBL, "FRAMES", 0, &s);
+    int has = s == 0;
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, &s2);
+    }
+    fits_clear_errmsg();
+    return has;
 }
 
 int cubefile_sha256(const char *path, char hex[65], sl_err *err)

@@ -37,6 +37,9 @@ int cubefile_salvage(const char *path, int *nframes, sl_err *err);
 int cubefile_frames_table(const char *path, const cubefile_row *rows, long n,
                           const camera_stats *st, sl_err *err);
 
+/* 1 when path has a FRAMES binary table extension. */
+int cubefile_has_table(const char *path);
+
 /* 64 lowercase hex digits and a NUL. */
 int cubefile_sha256(const char *path, char hex[65], sl_err *err);
 

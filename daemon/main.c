@@ -13,7 +13,8 @@
  *   3. the socket (server.h), so a live daemon on it is found early;
  *   4. the catalogue: configured screens and masks upserted; every run
  *      left non-terminal by a previous daemon gets its partial cube
- *      salvaged (cubefile_salvage: frames on disk counted), is marked
+ *      salvaged (cubefile_salvage: frames on disk counted) and its FRAMES
+ *      table rebuilt from the rows it logged (framelog.h), is marked
  *      'interrupted', and its file re-checksummed;
  *   5. the worker and runner threads, signal sources, then "READY
  *      socket=PATH" on stdout and the main loop.
@@ -40,6 +41,7 @@
 
 #include "cubefile.h"
 #include "dispatch.h"
+#include "framelog.h"
 /* After GLib: recon's `mask` typedef would clash with gutils.h parameters. */
 #include "sim/mask.h"
 
@@ -175,6 +177,10 @@ static int recover_runs(const config *cfg, catalog *cat, sl_err *e)
         if (o->file && cubefile_under(cfg->data_dir, o->file) &&
             cubefile_salvage(o->file, &n, e) == SL_OK &&
             catalog_run_get(cat, o->uuid, &r) == SL_OK) {
+            sl_err e2 = {0};
+            /* The FRAMES rows logged while it acquired (framelog.h). */
+            if (framelog_recover(o->file, n, &e2) != SL_OK)
+                g_warning("run %s: no FRAMES table: %s", o->uuid, e2.msg);
             catalog_run_update_progress(cat, o->uuid, n, r.frames_failed, r.packets_missing);
             catalog_run_clear(&r);
         }

@@ -34,6 +34,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/ioctl.h>
+#include <sys/mount.h>
 #include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -61,6 +62,8 @@ typedef struct bench {
     void *daemon_pre_arg;
     GPtrArray *keep;              /* JsonNode*, released by bench_down */
     GPtrArray *clients;           /* dc*, closed by bench_down */
+    char mnt[2][300];             /* tmpfs mounts (bench_tmpfs), unmounted by bench_down */
+    int nmnt, private_mounts;
 } bench;
 
 static inline int fx_rm(const char *path, const struct stat *sb, int flag, struct FTW *ftw)
@@ -165,6 +168,38 @@ static inline void bench_dump_log(const bench *b)
         fclose(f);
 }
 
+/* A tmpfs of size_kb KiB at path (created), so a test can fill a disk:
+ * mounted in a private mount namespace of the test child (the namespace
+ * and the mount die with it; bench_down unmounts it first so that the
+ * bench directory can be removed).  0, or -1 with the reason in why (no
+ * mount namespace here: the caller skips). */
+static inline int bench_tmpfs(bench *b, const char *path, long size_kb, char *why, size_t n)
+{
+    char opt[32];
+    if (b->nmnt >= (int)G_N_ELEMENTS(b->mnt)) {
+        snprintf(why, n, "more than %d tmpfs mounts", (int)G_N_ELEMENTS(b->mnt));
+        return -1;
+    }
+    if (g_mkdir_with_parents(path, 0750) != 0) {
+        snprintf(why, n, "mkdir %s: %s", path, strerror(errno));
+        return -1;
+    }
+    /* Private: nothing mounted here may show in the host's namespace. */
+    if (!b->private_mounts &&
+        (unshare(CLONE_NEWNS) != 0 || mount(NULL, "/", NULL, MS_REC | MS_PRIVATE, NULL) != 0)) {
+        snprintf(why, n, "no private mount namespace: %s", strerror(errno));
+        return -1;
+    }
+    b->private_mounts = 1;
+    snprintf(opt, sizeof opt, "size=%ldk,mode=0750", size_kb);
+    if (mount("tmpfs", path, "tmpfs", MS_NOSUID | MS_NODEV, opt) != 0) {
+        snprintf(why, n, "mount tmpfs (%s) on %.200s: %s", opt, path, strerror(errno));
+        return -1;
+    }
+    snprintf(b->mnt[b->nmnt++], sizeof b->mnt[0], "%s", path);
+    return 0;
+}
+
 static inline void fx_bench_release(bench *b);
 
 static inline void bench_down(bench *b, int failed)
@@ -174,6 +209,8 @@ static inline void bench_down(bench *b, int failed)
     fx_stop(&b->daemon, SIGTERM, 10);
     fx_stop(&b->cam, SIGTERM, 5);
     fx_stop(&b->stage, SIGTERM, 5);
+    while (b->nmnt > 0)
+        umount2(b->mnt[--b->nmnt], MNT_DETACH);
     fx_bench_release(b);
     if (b->dir[0] && !getenv("SL_KEEP_TMP"))
         nftw(b->dir, fx_rm, 16, FTW_DEPTH | FTW_PHYS);

@@ -18,14 +18,14 @@
 /* After GLib (recon's `mask` typedef and GLib's parameter names). */
 #include "../../mocks/fake-camera/fakecam.h"
 
-static const char *mx_str(const char *s)
+static inline const char *mx_str(const char *s)
 {
     return s ? s : "";
 }
 
 /* ---- a bench with camera flags ------------------------------------------------- */
 
-static int mx_start_camera(bench *b, const char *const *extra)
+static inline int mx_start_camera(bench *b, const char *const *extra)
 {
     char bin[PATH_MAX], line[256], stage[64];
     char *argv[24] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
@@ -62,7 +62,7 @@ static int mx_start_camera(bench *b, const char *const *extra)
     TEST(name) { fx_in_netns(t, name##_run, limit_s); }                       \
     static void name##_body(tc *t, bench *b)
 
-static int mx_kill_restart(bench *b)
+static inline int mx_kill_restart(bench *b)
 {
     fx_stop(&b->daemon, SIGKILL, 5);
     return bench_start_daemon(b);
@@ -70,7 +70,7 @@ static int mx_kill_restart(bench *b)
 
 /* ---- requests, events, status ------------------------------------------------- */
 
-static int mx_start(bench *b, dc *c, const char *args, char out[40])
+static inline int mx_start(bench *b, dc *c, const char *args, char out[40])
 {
     JsonNode *r = keep(b, dc_call(c, "start-run", args, 10));
     if (!jok(r))
@@ -83,7 +83,7 @@ typedef int (*mx_status_fn)(JsonNode *reply, const void *arg);
 
 /* `status` every 10 ms until fn(reply, arg): that reply (kept), or NULL
  * when timeout_s passed first. */
-static JsonNode *mx_poll_status(bench *b, dc *c, mx_status_fn fn, const void *arg,
+static inline JsonNode *mx_poll_status(bench *b, dc *c, mx_status_fn fn, const void *arg,
                                 double timeout_s)
 {
     double end = fx_now() + timeout_s;
@@ -104,7 +104,7 @@ typedef struct mx_want {
     int frames;
 } mx_want;
 
-static int mx_is_current(JsonNode *r, const void *arg)
+static inline int mx_is_current(JsonNode *r, const void *arg)
 {
     const mx_want *w = arg;
     return !g_strcmp0(js(r, "result.current_run"), w->run) &&
@@ -114,7 +114,7 @@ static int mx_is_current(JsonNode *r, const void *arg)
 
 /* Events until a final state of run (kept and returned; NULL on timeout);
  * *last_failed (may be NULL) the frames_failed of its last progress. */
-static JsonNode *mx_wait_end(bench *b, dc *c, const char *run, double timeout_s,
+static inline JsonNode *mx_wait_end(bench *b, dc *c, const char *run, double timeout_s,
                              gint64 *last_failed)
 {
     double end = fx_now() + timeout_s;
@@ -138,7 +138,7 @@ static JsonNode *mx_wait_end(bench *b, dc *c, const char *run, double timeout_s,
 }
 
 /* Collect run's state events (comma-separated into seen) until time end. */
-static void mx_events_until(dc *c, const char *run, double end, GString *seen)
+static inline void mx_events_until(dc *c, const char *run, double end, GString *seen)
 {
     double left;
     while ((left = end - fx_now()) > 0) {
@@ -152,7 +152,7 @@ static void mx_events_until(dc *c, const char *run, double end, GString *seen)
 }
 
 /* A new short run on the bench ends done. */
-static void mx_next_run_done(tc *t, bench *b, dc *c)
+static inline void mx_next_run_done(tc *t, bench *b, dc *c)
 {
     char uuid[40];
     keep(b, dc_call(c, "subscribe", NULL, 5));
@@ -178,8 +178,8 @@ typedef struct mx_seen {
  * reason); its file, when it has one, must be on disk with the catalogued
  * SHA-256 and open as a cube of exactly frames_acquired frames; without a
  * file it has no frames.  0, or -1 with the failure noted. */
-static int mx_check_run(tc *t, bench *b, const char *uuid, catalog_state want, const char *reason,
-                        mx_seen *v)
+static inline int mx_check_run(tc *t, bench *b, const char *uuid, catalog_state want,
+                               const char *reason, mx_seen *v)
 {
     catalog_run cr;
     char msg[512] = "", hex[65] = "";
@@ -214,7 +214,7 @@ static int mx_check_run(tc *t, bench *b, const char *uuid, catalog_state want, c
     return ok ? 0 : -1;
 }
 
-static catalog_state mx_state(bench *b, const char *uuid)
+static inline catalog_state mx_state(bench *b, const char *uuid)
 {
     catalog_run cr;
     char msg[512];
@@ -225,7 +225,7 @@ static catalog_state mx_state(bench *b, const char *uuid)
     return s;
 }
 
-static int mx_count(const catalog_recon *r, void *user)
+static inline int mx_count(const catalog_recon *r, void *user)
 {
     (void)r;
     ++*(int *)user;
@@ -233,7 +233,7 @@ static int mx_count(const catalog_recon *r, void *user)
 }
 
 /* Reconstruction rows of a run, -1 when the catalogue cannot be read. */
-static int mx_recon_rows(bench *b, const char *uuid)
+static inline int mx_recon_rows(bench *b, const char *uuid)
 {
     char path[300];
     catalog *c = NULL;
@@ -246,7 +246,7 @@ static int mx_recon_rows(bench *b, const char *uuid)
     return n;
 }
 
-static int mx_runs_files(bench *b)
+static inline int mx_runs_files(bench *b)
 {
     char path[300];
     int n = 0;
@@ -259,7 +259,7 @@ static int mx_runs_files(bench *b)
     return n;
 }
 
-static int mx_log_has(bench *b, const char *needle)
+static inline int mx_log_has(bench *b, const char *needle)
 {
     gchar *text = NULL;
     int has = g_file_get_contents(b->dlog, &text, NULL, NULL) && strstr(text, needle);
@@ -281,7 +281,7 @@ typedef struct mx_truth {
     unsigned char *packed;
 } mx_truth;
 
-static int mx_truth_new(mx_truth *tr, fitsfile *f, int w, int h, char *err, size_t n)
+static inline int mx_truth_new(mx_truth *tr, fitsfile *f, int w, int h, char *err, size_t n)
 {
     int s = 0, screen = -1, mslot = -1;
     double exptime_s = NAN, gain_db = 0;
@@ -314,7 +314,7 @@ static int mx_truth_new(mx_truth *tr, fitsfile *f, int w, int h, char *err, size
     return 0;
 }
 
-static void mx_truth_free(mx_truth *tr)
+static inline void mx_truth_free(mx_truth *tr)
 {
     sim_free(tr->s);
     mask_free(tr->msk);
@@ -324,7 +324,7 @@ static void mx_truth_free(mx_truth *tr)
 }
 
 /* Pixels of pix (w x h) that differ from the rendering of frame_id. */
-static long mx_truth_diff(mx_truth *tr, uint64_t frame_id, const unsigned short *pix)
+static inline long mx_truth_diff(mx_truth *tr, uint64_t frame_id, const unsigned short *pix)
 {
     int w = tr->m.sensor_w, h = tr->m.sensor_h;
     if (sim_frame(tr->s, fakecam_frame_index(frame_id), tr->sensor) != SL_OK)
@@ -340,7 +340,7 @@ static long mx_truth_diff(mx_truth *tr, uint64_t frame_id, const unsigned short 
  * cube's frames 0, 1, 2... in order, every other row has CUBE_IDX -1 and
  * their count is the catalogue's frames_failed; and every stored frame is
  * the fake camera's frame of that id, bit for bit.  0, or -1 noted. */
-static int mx_check_frames(tc *t, bench *b, const mx_seen *v)
+static inline int mx_check_frames(tc *t, bench *b, const mx_seen *v)
 {
     (void)b;
     fitsfile *f = NULL;
@@ -408,6 +408,57 @@ static int mx_check_frames(tc *t, bench *b, const mx_seen *v)
     return ok ? 0 : -1;
 }
 
+/* The FRAMES table of v->file never names a frame the cube does not
+ * hold: it exists, every CUBE_IDX is -1 or inside the cube (< NAXIS3),
+ * the stored ones are 0, 1, 2... in order and there are NAXIS3 of them
+ * (= the catalogue's frames_acquired), and no damaged buffer claims a
+ * place.  *lost (may be NULL) gets the SUCCESS rows left out of the cube
+ * (delivered by the camera, not on disk).  0, or -1 noted. */
+static inline int mx_check_cube_idx(tc *t, const mx_seen *v, long *lost)
+{
+    fitsfile *f = NULL;
+    int s = 0, col_st = 0, col_idx = 0;
+    long nrows = 0, stored = 0, outside = 0, order_bad = 0, damaged_in = 0, gone = 0;
+    fits_open_diskfile(&f, v->file, READONLY, &s);
+    fits_movnam_hdu(f, BINARY_TBL, "FRAMES", 0, &s);
+    fits_get_num_rows(f, &nrows, &s);
+    fits_get_colnum(f, CASEINSEN, "STATUS", &col_st, &s);
+    fits_get_colnum(f, CASEINSEN, "CUBE_IDX", &col_idx, &s);
+    for (long i = 1; i <= nrows && !s; i++) {
+        int idx = 0, any = 0;
+        char text[20] = "", *cell = text;
+        fits_read_col(f, TSTRING, col_st, i, 1, 1, NULL, &cell, &any, &s);
+        fits_read_col(f, TINT, col_idx, i, 1, 1, NULL, &idx, &any, &s);
+        int good = !strcmp(text, "SUCCESS");
+        if (idx < 0) {
+            gone += good;
+            outside += idx != -1;
+            continue;
+        }
+        outside += idx >= v->n3;
+        order_bad += idx != stored;
+        damaged_in += !good;
+        stored++;
+    }
+    char err[FLEN_STATUS] = "";
+    if (s)
+        fits_get_errstatus(s, err);
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, &s2);
+    }
+    if (lost)
+        *lost = gone;
+    int ok = !s && outside == 0 && order_bad == 0 && damaged_in == 0 && stored == v->n3 &&
+             stored == v->frames;
+    if (!ok)
+        tc_note(t, 0, __FILE__, __LINE__, "CUBE_IDX", "%s: FRAMES %s%s: %ld rows, %ld with a "
+                "CUBE_IDX (cube NAXIS3 %ld, catalogue %d), %ld outside the cube, %ld out of "
+                "order, %ld damaged with a place", v->file, s ? "unreadable: " : "ok", err,
+                nrows, stored, v->n3, v->frames, outside, order_bad, damaged_in);
+    return ok ? 0 : -1;
+}
+
 /* ---- the catalogue's write lock, held by this process ------------------------- */
 
 typedef struct mx_lock {
@@ -416,7 +467,7 @@ typedef struct mx_lock {
 
 /* BEGIN EXCLUSIVE on the daemon's catalogue (in WAL mode: the write lock;
  * readers go on).  Waits up to 10 s for a daemon write in progress. */
-static int mx_lock_take(mx_lock *l, const bench *b, char *err, size_t n)
+static inline int mx_lock_take(mx_lock *l, const bench *b, char *err, size_t n)
 {
     char path[300];
     snprintf(path, sizeof path, "%s/specklab.db", b->data);
@@ -435,7 +486,7 @@ static int mx_lock_take(mx_lock *l, const bench *b, char *err, size_t n)
     return 0;
 }
 
-static void mx_lock_drop(mx_lock *l)
+static inline void mx_lock_drop(mx_lock *l)
 {
     if (!l->db)
         return;
@@ -447,7 +498,7 @@ static void mx_lock_drop(mx_lock *l)
 /* ---- the fake stage over Modbus: its wheels, its fault registers (100..108,
  * drivers/stage_map.h; requests only to those ignore the fault switches) -- */
 
-static modbus_t *mx_stage_open(int port)
+static inline modbus_t *mx_stage_open(int port)
 {
     modbus_t *m = modbus_new_tcp("127.0.0.1", port);
     if (m && (modbus_set_slave(m, 1) != 0 || modbus_set_response_timeout(m, 2, 0) != 0 ||
@@ -458,7 +509,7 @@ static modbus_t *mx_stage_open(int port)
     return m;
 }
 
-static int mx_stage_poke(int port, int reg, int value)
+static inline int mx_stage_poke(int port, int reg, int value)
 {
     modbus_t *m = mx_stage_open(port);
     int rc = m && modbus_write_register(m, reg, (uint16_t)value) == 1 ? 0 : -1;
@@ -472,7 +523,7 @@ static int mx_stage_poke(int port, int reg, int value)
 /* Poll the stage itself until wheel is in motion towards slot (TARGET set,
  * STATUS busy): the daemon's `moving` state starts before its commands
  * do.  0, or -1 after timeout_s. */
-static int mx_wheel_moving(int port, int wheel, int slot, double timeout_s)
+static inline int mx_wheel_moving(int port, int wheel, int slot, double timeout_s)
 {
     modbus_t *m = mx_stage_open(port);
     double end = fx_now() + timeout_s;
@@ -493,7 +544,7 @@ static int mx_wheel_moving(int port, int wheel, int slot, double timeout_s)
 }
 
 /* The register's value, or -1. */
-static int mx_stage_read(int port, int reg)
+static inline int mx_stage_read(int port, int reg)
 {
     modbus_t *m = mx_stage_open(port);
     uint16_t v = 0;

@@ -254,19 +254,50 @@ static int is_equal_pair(const binary_result *init)
 
 /* The fit proper, on n kept triples over nf frequencies with k-vectors kv
  * (2 nf doubles, the model's a and gr scratch after them: 6 nf in all). */
+/* Delete-a-group jackknife: refit without each sector of u_j's angle,
+ * from the fit (a few LM steps each); its covariance into Cj. */
+static void jackknife(fitctx *c, const double best[NP], double Cj[NP * NP])
+{
+    double jt[CLOSURE_JK][NP], jm[NP] = {0}, A[NP * NP];
+    for (int k = 0; k < CLOSURE_JK; k++) {
+        c->skip = k;
+        memcpy(jt[k], best, NP * sizeof *best);
+        int st;
+        lm(c, jt[k], A, JK_STEPS, &st);
+        for (int p = 0; p < NP; p++)
+            jm[p] += jt[k][p] / CLOSURE_JK;
+    }
+    c->skip = -1;
+    memset(Cj, 0, NP * NP * sizeof *Cj);
+    for (int k = 0; k < CLOSURE_JK; k++)
+        for (int p = 0; p < NP; p++)
+            for (int q = 0; q < NP; q++)
+                Cj[p * NP + q] += (CLOSURE_JK - 1.0) / CLOSURE_JK *
+                                  (jt[k][p] - jm[p]) * (jt[k][q] - jm[q]);
+}
+
+/* The frequencies the kept triples use. */
+static int count_used(const kept *t, long n, int nf, int *nused)
+{
+    unsigned char *used = calloc((size_t)nf, 1);
+    if (!used)
+        return SL_ENOMEM;
+    for (long i = 0; i < n; i++)
+        used[t[i].l1 % nf] = used[t[i].l2 % nf] = used[t[i].j] = 1;
+    *nused = 0;
+    for (int j = 0; j < nf; j++)
+        *nused += used[j];
+    free(used);
+    return SL_OK;
+}
+
 static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
                     const binary_result *init, binary_result *out,
                     closure_fit_info *info, sl_err *err)
 {
-    int rc = SL_OK;
-    unsigned char *used = calloc((size_t)nf, 1);
-    if (!used)
-        return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
-    for (long i = 0; i < n; i++)
-        used[t[i].l1 % nf] = used[t[i].l2 % nf] = used[t[i].j] = 1;
     int nused = 0;
-    for (int j = 0; j < nf; j++)
-        nused += used[j];
+    if (count_used(t, n, nf, &nused) != SL_OK)
+        return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
     fitctx c = {t, n, kv, nf, kv + 2 * (size_t)nf, kv + 3 * (size_t)nf, -1};
     double lr0 = log(fmin(fmax(init->flux_ratio, 1e-3), 0.9));
     double best[NP] = {init->dx_px, init->dy_px, lr0};
@@ -284,11 +315,9 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
         }
     }
     double sep = hypot(best[0], best[1]);
-    if (!(sep >= 0.5 && sep <= max_sep)) {
-        rc = sl_seterr(err, SL_EDATA, "closure fit: no binary (separation "
-                       "%.3g px, outside 0.5..%.0f px)", sep, max_sep);
-        goto free_used;
-    }
+    if (!(sep >= 0.5 && sep <= max_sep))
+        return sl_seterr(err, SL_EDATA, "closure fit: no binary (separation "
+                         "%.3g px, outside 0.5..%.0f px)", sep, max_sep);
     double wsum = 0;
     for (long i = 0; i < n; i++)
         wsum += t[i].wt;
@@ -298,36 +327,17 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
     /* and no companion at all (r -> 0: every model closure phase 0) */
     double none[NP] = {best[0], best[1], log(1e-12)};
     double fnone = cost(&c, none, NULL, NULL);
-    double Ci[NP * NP];
-    if (!inv3(Abest, Ci)) {
-        rc = sl_seterr(err, SL_EDATA, "closure fit: singular normal "
-                       "equations (%ld triples)", n);
-        goto free_used;
-    }
+    double Ci[NP * NP], Cj[NP * NP];
+    if (!inv3(Abest, Ci))
+        return sl_seterr(err, SL_EDATA, "closure fit: singular normal "
+                         "equations (%ld triples)", n);
     /* Residual variance per unit weight, and each frequency (not each
      * triple) counted as one measurement (closure.h, Limits). */
     double s2 = fbest / (double)(n > NP ? n - NP : 1);
     double infl = nused > 0 ? (double)n / nused : 1.0;
     for (int k = 0; k < NP * NP; k++)
         Ci[k] *= s2 * infl;
-    /* Delete-a-group jackknife: refit without each sector of u_j's angle,
-     * from the fit (a few LM steps each). */
-    double jt[CLOSURE_JK][NP], jm[NP] = {0};
-    for (int k = 0; k < CLOSURE_JK; k++) {
-        c.skip = k;
-        memcpy(jt[k], best, sizeof best);
-        int st;
-        lm(&c, jt[k], A, JK_STEPS, &st);
-        for (int p = 0; p < NP; p++)
-            jm[p] += jt[k][p] / CLOSURE_JK;
-    }
-    c.skip = -1;
-    double Cj[NP * NP] = {0};
-    for (int k = 0; k < CLOSURE_JK; k++)
-        for (int p = 0; p < NP; p++)
-            for (int q = 0; q < NP; q++)
-                Cj[p * NP + q] += (CLOSURE_JK - 1.0) / CLOSURE_JK *
-                                  (jt[k][p] - jm[p]) * (jt[k][q] - jm[q]);
+    jackknife(&c, best, Cj);
     /* The jackknife carries the atmosphere's correlations; the within-fit
      * part keeps the errors off zero when the sectors happen to agree. */
     for (int k = 0; k < NP * NP; k++)
@@ -337,9 +347,7 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
         *info = (closure_fit_info){n, nused, sqrt(fbest / wsum), steps,
                                    (fflip - fbest) / (s2 * infl),
                                    (fnone - fbest) / (s2 * infl)};
-free_used:
-    free(used);
-    return rc;
+    return SL_OK;
 }
 
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp,

@@ -49,6 +49,7 @@ typedef struct progress_writer {
     GCond cv;
     int stored, failed, posted, stop;
     int64_t missing;
+    int warned;               /* the helper thread's own */
 } progress_writer;
 
 static gpointer progress_main(gpointer data)
@@ -71,8 +72,11 @@ static gpointer progress_main(gpointer data)
         int64_t missing = p->missing;
         p->posted = 0;
         g_mutex_unlock(&p->mu);
-        if (cat && catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK)
-            g_warning("run %s: %s", p->uuid, catalog_errmsg(cat));
+        /* Once per run: on a full disk or a locked catalogue every
+         * second's write fails alike. */
+        if (cat && catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK &&
+            !p->warned++)
+            g_warning("run %s: %s (progress not recorded)", p->uuid, catalog_errmsg(cat));
         g_mutex_lock(&p->mu);
     }
     g_mutex_unlock(&p->mu);
@@ -448,7 +452,7 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
                        a->packets_missing};
     char what[80];
     snprintf(what, sizeof what, "run %s: recording its cube", uuid);
-    if (catlock_write(r->cat, what, catlock_set_file, &cf, runner_stopping, r) != SL_OK)
+    if (catlock_write(r->cat, &r->cl, what, catlock_set_file, &cf) != SL_OK)
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
     a->stored = on_disk;
     runner_note_progress(r, on_disk);
@@ -506,7 +510,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     char what[80];
     snprintf(what, sizeof what, "run %s: recording its cube", sp->uuid);
     if (rc == SL_OK &&
-        catlock_write(r->cat, what, catlock_set_file, &cf, runner_stopping, r) != SL_OK)
+        catlock_write(r->cat, &r->cl, what, catlock_set_file, &cf) != SL_OK)
         rc = sl_seterr(&e, SL_EIO, "%s", catalog_errmsg(r->cat));
     if (rc != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);

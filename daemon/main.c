@@ -11,7 +11,8 @@
  *      flock on DATA_DIR/specklabd.lock: a second daemon on the same data
  *      must not "recover" the first one's live runs;
  *   3. the socket (server.h), so a live daemon on it is found early;
- *   4. the catalogue: configured screens and masks upserted; every run
+ *   4. the catalogue, with its reserve for ending runs on a full disk
+ *      (reserve.h): configured screens and masks upserted; every run
  *      left non-terminal by a previous daemon gets its partial cube
  *      salvaged (cubefile_salvage: frames on disk counted) and its FRAMES
  *      table rebuilt from the rows it logged (framelog.h), is marked
@@ -42,6 +43,7 @@
 #include "cubefile.h"
 #include "dispatch.h"
 #include "framelog.h"
+#include "reserve.h"
 /* After GLib: recon's `mask` typedef would clash with gutils.h parameters. */
 #include "sim/mask.h"
 
@@ -208,6 +210,27 @@ free_v:
     return rc;
 }
 
+/* Open the catalogue, upsert the slots, recover the runs left behind.  On
+ * a full disk these writes fail; the reserve a previous daemon left is
+ * then released and they are tried once more (the runner makes the
+ * reserve again before the next run). */
+static int start_catalog(const config *cfg, const catalog_opts *co, catalog **cat, reserve *rs,
+                         sl_err *e)
+{
+    for (int attempt = 0;; attempt++) {
+        int rc = catalog_open_opts(cat, cfg->catalog, co, e);
+        if (rc == SL_OK && (rc = upsert_slots(cfg, *cat, e)) == SL_OK &&
+            (rc = recover_runs(cfg, *cat, e)) == SL_OK)
+            return SL_OK;
+        if (attempt > 0 || !reserve_release(rs))
+            return rc;
+        g_warning("%s; released the catalogue's reserve to start", e->msg);
+        catalog_close(*cat);
+        *cat = NULL;
+        sl_clearerr(e);
+    }
+}
+
 /* ---- signals, logging, detaching ---------------------------------------------- */
 
 static gboolean on_signal(gpointer loop)
@@ -263,6 +286,7 @@ int main(int argc, char **argv)
     sl_err e = {0};
     int status = 1, lock_fd = -1, ready_fd = -1;
     daemon_ctx d = {0};
+    reserve *rs = NULL;
     if ((status = parse_opts(argc, argv, &o)) != 0)
         goto free_opts;
     status = 1;
@@ -293,11 +317,9 @@ int main(int argc, char **argv)
     g_main_context_acquire(g_main_context_default());
     if (prepare_dirs(&cfg, &lock_fd, &e) != SL_OK ||
         server_new(&d.srv, cfg.socket, cfg.max_clients, dispatch_request, &d, &e) != SL_OK ||
-        catalog_open_opts(&d.cat, cfg.catalog, &cat_opts, &e) != SL_OK ||
-        upsert_slots(&cfg, d.cat, &e) != SL_OK ||
-        recover_runs(&cfg, d.cat, &e) != SL_OK ||
-        worker_new(&d.wk, &cfg, d.srv, &e) != SL_OK ||
-        runner_new(&d.run, &cfg, d.srv, d.wk, &e) != SL_OK) {
+        (rs = reserve_new(cfg.catalog), start_catalog(&cfg, &cat_opts, &d.cat, rs, &e)) != SL_OK ||
+        worker_new(&d.wk, &cfg, d.srv, rs, &e) != SL_OK ||
+        runner_new(&d.run, &cfg, d.srv, d.wk, rs, &e) != SL_OK) {
         fprintf(stderr, "specklabd: %s\n", e.msg);
         goto stop;
     }
@@ -335,6 +357,7 @@ stop:
     g_main_loop_unref(loop);
     if (lock_fd >= 0)
         close(lock_fd);
+    reserve_free(rs);
     config_clear(&cfg);
 free_opts:
     g_free(o.config);

@@ -25,7 +25,7 @@ void runner_set_state(runner *r, const char *uuid, catalog_state st, const char 
     catlock_state a = {uuid, st, reason};
     char what[80];
     snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
-    if (catlock_write(r->cat, what, catlock_set_state, &a, runner_stopping, r) != SL_OK) {
+    if (catlock_write(r->cat, &r->cl, what, catlock_set_state, &a) != SL_OK) {
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
         return;
     }
@@ -177,8 +177,15 @@ static void do_run(runner *r, const runner_spec *sp)
 {
     char reason[1024] = "";
     double r0_m;
+    sl_err e = {0};
     g_message("run %s: screen %s (slot %d), mask %s (slot %d), %d frames", sp->uuid,
               sp->screen, sp->screen_slot, sp->mask, sp->mask_slot, sp->frames);
+    /* A run that could not record its own end is not started. */
+    if (reserve_hold(r->cl.rs, &e) != SL_OK) {
+        snprintf(reason, sizeof reason, "%s; free space on that disk first", e.msg);
+        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
+        return;
+    }
     runner_set_state(r, sp->uuid, CATALOG_MOVING, NULL);
     if (move_wheels(r, sp, reason, sizeof reason) != SL_OK) {
         runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
@@ -285,7 +292,8 @@ static gpointer thread_main(gpointer data)
 
 /* ---- main-thread API ----------------------------------------------------- */
 
-int runner_new(runner **out, const config *cfg, server *srv, worker *wk, sl_err *err)
+int runner_new(runner **out, const config *cfg, server *srv, worker *wk, reserve *rs,
+               sl_err *err)
 {
     runner *r = g_new0(runner, 1);
     catalog_opts co = {cfg->catalog_busy_timeout_ms};
@@ -298,6 +306,7 @@ int runner_new(runner **out, const config *cfg, server *srv, worker *wk, sl_err 
     r->cfg = cfg;
     r->srv = srv;
     r->wk = wk;
+    r->cl = (catlock_ctx){runner_stopping, r, rs};
     g_mutex_init(&r->mu);
     g_cond_init(&r->cv);
     g_queue_init(&r->queue);

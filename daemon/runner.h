@@ -28,6 +28,7 @@
 #include "camera.h"
 #include "config.h"
 #include "proto.h"
+#include "reserve.h"
 #include "server.h"
 #include "stage.h"
 #include "worker.h"
@@ -62,8 +63,11 @@ typedef struct runner_status {
 enum { RUNNER_NOT_HERE = 0, RUNNER_DEQUEUED = 1, RUNNER_ABORTING = 2 };
 
 /* Opens the thread's catalogue handle and starts the thread, which first
- * tries to open the camera (so `status` can name it; not fatal). */
-int runner_new(runner **out, const config *cfg, server *srv, worker *wk, sl_err *err);
+ * tries to open the camera (so `status` can name it; not fatal).  rs (may
+ * be NULL) is the catalogue's reserve (reserve.h): held before each run,
+ * released to record a run's end on a full disk. */
+int runner_new(runner **out, const config *cfg, server *srv, worker *wk, reserve *rs,
+               sl_err *err);
 /* Queue a run already inserted as 'queued'.  *ahead: runs before it
  * (current included); behind: the uuid right before it ("" if none). */
 void runner_enqueue(runner *r, const runner_spec *spec, int *ahead,

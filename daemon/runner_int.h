@@ -14,6 +14,7 @@ struct runner {
     worker *wk;
     /* Thread-owned: only the acquisition thread touches these. */
     catalog *cat;
+    catlock_ctx cl;            /* its catalogue writes: stop test, reserve */
     stage *stg;
     camera *cam;
     int cam_fresh;             /* opened but never streamed: prime it */

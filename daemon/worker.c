@@ -28,6 +28,7 @@ struct worker {
     const config *cfg;
     server *srv;
     catalog *cat;      /* the worker thread's own handle */
+    catlock_ctx cl;    /* its writes: stop test, reserve */
     GThread *th;
     GMutex mu;         /* guards q, stopping, current */
     GCond cv;
@@ -58,7 +59,7 @@ static void set_state(worker *w, const char *uuid, catalog_state st, const char 
     catlock_state a = {uuid, st, reason};
     char what[80];
     snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
-    if (catlock_write(w->cat, what, catlock_set_state, &a, stopping, w) != SL_OK) {
+    if (catlock_write(w->cat, &w->cl, what, catlock_set_state, &a) != SL_OK) {
         g_warning("run %s: %s", uuid, catalog_errmsg(w->cat));
         return;
     }
@@ -221,7 +222,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     rec->quality_json = o->quality;
     char what[80];
     snprintf(what, sizeof what, "run %s: recording its reconstruction", j->uuid);
-    if ((rc = catlock_write(w->cat, what, insert_recon, rec, stopping, w)) != SL_OK)
+    if ((rc = catlock_write(w->cat, &w->cl, what, insert_recon, rec)) != SL_OK)
         sl_seterr(e, rc, "%s", catalog_errmsg(w->cat));
 clear_result:
     if (rc != SL_OK && o->fits) {   /* no row: leave no orphan files */
@@ -344,7 +345,7 @@ static gpointer thread_main(gpointer data)
     return NULL;
 }
 
-int worker_new(worker **out, const config *cfg, server *srv, sl_err *err)
+int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err *err)
 {
     worker *w = g_new0(worker, 1);
     catalog_opts co = {cfg->catalog_busy_timeout_ms};
@@ -356,6 +357,7 @@ int worker_new(worker **out, const config *cfg, server *srv, sl_err *err)
     }
     w->cfg = cfg;
     w->srv = srv;
+    w->cl = (catlock_ctx){stopping, w, rs};
     g_mutex_init(&w->mu);
     g_cond_init(&w->cv);
     g_queue_init(&w->q);

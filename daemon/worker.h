@@ -24,13 +24,15 @@
 
 #include "config.h"
 #include "proto.h"
+#include "reserve.h"
 #include "server.h"
 
 typedef struct worker worker;
 
 /* Opens the worker's catalogue handle (errors here, not in the thread)
- * and starts the thread.  cfg and srv must outlive the worker. */
-int worker_new(worker **out, const config *cfg, server *srv, sl_err *err);
+ * and starts the thread.  cfg, srv and rs (the catalogue's reserve,
+ * reserve.h; may be NULL) must outlive the worker. */
+int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err *err);
 /* Queue a job (thread-safe).  req NULL: automatic. projections 0: the
  * configured default.  Returns the number of jobs ahead of it. */
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,

@@ -355,6 +355,11 @@ const char *catalog_errmsg(const catalog *c)
     return c ? c->err.msg : "no catalogue";
 }
 
+int catalog_disk_full(const catalog *c)
+{
+    return c && c->last_full;
+}
+
 int catalog_schema_version(catalog *c)
 {
     int64_t v = 0;

@@ -107,6 +107,10 @@ int catalog_open_opts(catalog **out, const char *path,
                       const catalog_opts *opts, sl_err *err);
 void catalog_close(catalog *c); /* NULL is a no-op */
 const char *catalog_errmsg(const catalog *c);
+/* 1 when the last error was the disk (or the catalogue's quota) running
+ * out: SQLITE_FULL, or an I/O error whose OS error is ENOSPC.  The
+ * message then says "disk full". */
+int catalog_disk_full(const catalog *c);
 /* The file's schema version (user_version), or a negative SL_E*. */
 int catalog_schema_version(catalog *c);
 /* The newest migration compiled in (>= 1), or a negative SL_E*. */

@@ -67,6 +67,7 @@ struct catalog {
     sl_err err;
     int last_rc;             /* extended SQLite code of the last error, to
                               * tell e.g. a foreign key from a CHECK */
+    int last_full;           /* the last error was the disk running out */
     sqlite3_stmt *st[CS_COUNT];
 };
 

@@ -54,6 +54,7 @@ int cat_seterr(catalog *c, int code, const char *fmt, ...)
 {
     va_list ap;
     c->err.code = code;
+    c->last_full = 0;
     va_start(ap, fmt);
     vsnprintf(c->err.msg, sizeof c->err.msg, fmt, ap);
     va_end(ap);
@@ -64,6 +65,10 @@ int cat_sqlerr(catalog *c, int rc, const char *what)
 {
     const char *msg = c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(rc);
     c->last_rc = rc;
+    /* A file SQLite cannot grow (the -shm, a WAL write) may surface as an
+     * I/O error; the OS error says it was the disk. */
+    if ((rc & 0xff) == SQLITE_IOERR && c->db && sqlite3_system_errno(c->db) == ENOSPC)
+        rc = SQLITE_FULL;
     switch (rc & 0xff) {
     case SQLITE_BUSY:
     case SQLITE_LOCKED:
@@ -88,8 +93,9 @@ int cat_sqlerr(catalog *c, int rc, const char *what)
         return cat_seterr(c, SL_EFORMAT, "catalogue %s is corrupt (%s): %s",
                           c->path, what, msg);
     case SQLITE_FULL:
-        return cat_seterr(c, SL_EIO, "catalogue %s: %s: disk full (%s)",
-                          c->path, what, msg);
+        cat_seterr(c, SL_EIO, "catalogue %s: %s: disk full (%s)", c->path, what, msg);
+        c->last_full = 1;
+        return SL_EIO;
     default:
         return cat_seterr(c, SL_EIO, "catalogue %s: %s: %s", c->path, what,
                           msg);

@@ -55,6 +55,7 @@
 typedef struct bench {
     char dir[128];
     char data[200], sock[200], conf[200], dlog[200], clog[200];
+    char db[300];                 /* the catalogue: DATA/specklab.db unless moved */
     char cam_size[16];
     fx_proc stage, cam, daemon;
     int port;
@@ -81,6 +82,7 @@ static inline int bench_init(bench *b)
     if (!mkdtemp(b->dir))
         return -1;
     snprintf(b->data, sizeof b->data, "%s/var", b->dir);
+    snprintf(b->db, sizeof b->db, "%s/specklab.db", b->data);
     snprintf(b->sock, sizeof b->sock, "%s/var/specklabd.sock", b->dir);
     snprintf(b->conf, sizeof b->conf, "%s/specklabd.conf", b->dir);
     snprintf(b->dlog, sizeof b->dlog, "%s/specklabd.log", b->dir);
@@ -274,11 +276,9 @@ static inline int fx_sha256(const char *path, char hex[65])
 static inline int fx_catalog_run(const bench *b, const char *uuid, catalog_run *out, char *err,
                           size_t n)
 {
-    char path[300];
     catalog *c = NULL;
     sl_err e = {0};
-    snprintf(path, sizeof path, "%s/specklab.db", b->data);
-    int rc = catalog_open(&c, path, &e);
+    int rc = catalog_open(&c, b->db, &e);
     if (rc != SL_OK)
         snprintf(err, n, "catalog_open: %.400s", e.msg);
     else if ((rc = catalog_integrity_check(c)) != SL_OK)

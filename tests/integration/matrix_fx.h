@@ -235,12 +235,10 @@ static inline int mx_count(const catalog_recon *r, void *user)
 /* Reconstruction rows of a run, -1 when the catalogue cannot be read. */
 static inline int mx_recon_rows(bench *b, const char *uuid)
 {
-    char path[300];
     catalog *c = NULL;
     sl_err e = {0};
     int n = 0;
-    snprintf(path, sizeof path, "%s/specklab.db", b->data);
-    if (catalog_open(&c, path, &e) != SL_OK || catalog_recon_list(c, uuid, mx_count, &n) != SL_OK)
+    if (catalog_open(&c, b->db, &e) != SL_OK || catalog_recon_list(c, uuid, mx_count, &n) != SL_OK)
         n = -1;
     catalog_close(c);
     return n;
@@ -469,8 +467,7 @@ typedef struct mx_lock {
  * readers go on).  Waits up to 10 s for a daemon write in progress. */
 static inline int mx_lock_take(mx_lock *l, const bench *b, char *err, size_t n)
 {
-    char path[300];
-    snprintf(path, sizeof path, "%s/specklab.db", b->data);
+    const char *path = b->db;
     l->db = NULL;
     int rc = sqlite3_open_v2(path, &l->db, SQLITE_OPEN_READWRITE, NULL);
     if (rc == SQLITE_OK) {

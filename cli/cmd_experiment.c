@@ -335,9 +335,15 @@ static void print_json(const bench_run *runs, int n, int frames)
         str_member(o, "png", dcmd_str(r->recon, "png"));
         json_array_add_object_element(a, o);
     }
-    JsonNode *node = json_node_init_array(json_node_alloc(), a);
-    dcmd_print_node(node);
-    json_node_unref(node);
+    /* one object, like every other command's --json */
+    JsonObject *top = json_object_new();
+    json_object_set_array_member(top, "runs", a);
+    int nfailed = 0;
+    for (int i = 0; i < n; i++)
+        nfailed += !runs[i].state || strcmp(runs[i].state, "done") != 0;
+    json_object_set_int_member(top, "runs_not_done", nfailed);
+    dcmd_print_object(top);
+    json_object_unref(top);
     json_array_unref(a);
 }
 

@@ -186,16 +186,6 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     pipeline_opts_defaults(o);
     if (!parse_choices(a, o))
         return 0;
-    if (a->target_error < 0 || a->target_error >= 1) {
-        fprintf(stderr, "specklab recon: --target-error %g: 1 - c in (0, 1)\n",
-                a->target_error);
-        return 0;
-    }
-    if (a->refine < -1) {
-        fprintf(stderr, "specklab recon: --refine %d: want -1 (automatic), 0 "
-                        "(none) or a number of passes\n", a->refine);
-        return 0;
-    }
     o->target_error = a->target_error;
     o->nangles = a->projections;
     o->r2_px = a->r2;
@@ -213,6 +203,11 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     o->nthreads = a->threads;
     o->refine_iters = a->refine;
     o->closure_binary = a->binary;
+    sl_err e = {0};
+    if (pipeline_opts_check(o, &e) != SL_OK) {
+        fprintf(stderr, "specklab recon: %s\n", e.msg);
+        return 0;
+    }
     return 1;
 }
 

@@ -4,6 +4,7 @@
 
 #include "cli.h"
 #include "cmd_daemon.h"
+#include "jsonmode.h"
 #include "base/wisdom.h"
 
 typedef struct command {
@@ -71,7 +72,11 @@ int main(int argc, char **argv)
             char name[64];
             snprintf(name, sizeof name, "specklab %s", commands[i].name);
             argv[1] = name;
-            return run_with_wisdom(&commands[i], argc - 1, argv + 1);
+            jsonmode jm = {0};
+            if (jsonmode_wanted(argc - 1, argv + 1))
+                jsonmode_begin(&jm);
+            int status = run_with_wisdom(&commands[i], argc - 1, argv + 1);
+            return jsonmode_end(&jm, commands[i].name, status);
         }
     }
     fprintf(stderr, "specklab: unknown command '%s'\n\n", argv[1]);

@@ -111,9 +111,10 @@ static int target_mtf(const char *path, int w, int h, double *mtf,
     int rc = cube_read(&t, NULL, paths, 1, 0, err);
     if (rc != SL_OK)
         return rc;
-    if (t->width != w || t->height != h) {
-        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d, frames are "
-                       "%dx%d", path, t->width, t->height, w, h);
+    if (t->width != w || t->height != h || t->nframes != 1) {
+        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d x %d frames; "
+                       "want one image of the frames' %dx%d", path, t->width,
+                       t->height, t->nframes, w, h);
         seq_free(t);
         return rc;
     }
@@ -292,9 +293,10 @@ static int tsm_target_power(const char *path, const tsm_opts *to, int w,
     tsm_opts o1 = *to;
     o1.photons_per_frame = 0;
     tsm *t = NULL;
-    if (img->width != w || img->height != h)
-        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d, frames are "
-                       "%dx%d", path, img->width, img->height, w, h);
+    if (img->width != w || img->height != h || img->nframes != 1)
+        rc = sl_seterr(err, SL_EFORMAT, "target PSF %s is %dx%d x %d frames; "
+                       "want one image of the frames' %dx%d", path, img->width,
+                       img->height, img->nframes, w, h);
     else if (!(t = tsm_new(w, h, &o1, err)))
         rc = err ? err->code : SL_ENOMEM;
     else if ((rc = tsm_add(t, img->data)) == SL_OK)
@@ -404,13 +406,13 @@ int pipeline_run(const char *const *paths, int npaths,
 {
     double t0 = now_s();
     memset(out, 0, sizeof *out);
-    if (o->method < 0 || o->method > PIPE_AUTO)
-        return sl_seterr(err, SL_EINVAL, "unknown method %d", o->method);
     stream s, ref;
     stream *refp = NULL;
-    int rc = stream_open(&s, paths, npaths, o, err);
-    if (rc != SL_OK)
+    int rc = pipeline_opts_check(o, err);
+    if (rc != SL_OK || (rc = stream_open(&s, paths, npaths, o, err)) != SL_OK)
         return rc;
+    if ((rc = pipeline_check_data(o, paths[0], s.w, s.h, s.n, err)) != SL_OK)
+        goto close_s;
     if (o->ref_path) {
         const char *rp[] = {o->ref_path};
         if ((rc = stream_open(&ref, rp, 1, o, err)) != SL_OK)
@@ -421,6 +423,8 @@ int pipeline_run(const char *const *paths, int npaths,
                            "are %dx%d", o->ref_path, ref.w, ref.h, s.w, s.h);
             goto close_ref;
         }
+        if ((rc = pipeline_check_data(o, o->ref_path, ref.w, ref.h, ref.n, err)) != SL_OK)
+            goto close_ref;
     }
     double photons, g;
     int phsrc;

@@ -224,6 +224,15 @@ typedef struct pipeline_result {
 } pipeline_result;
 
 void pipeline_opts_defaults(pipeline_opts *o);
+/* Options that cannot make sense, before any data is read: SL_EINVAL
+ * naming the option and its value (pipeline_check.c gives the limits). */
+int pipeline_opts_check(const pipeline_opts *o, sl_err *err);
+/* The options against the data: what (a path, for the message) holds
+ * nframes of width x height.  SL_EDATA for fewer than 2 frames, SL_EINVAL
+ * for a bispectrum radius past Nyquist or more projections than the frame
+ * resolves.  pipeline_run calls both. */
+int pipeline_check_data(const pipeline_opts *o, const char *what, int width,
+                        int height, int nframes, sl_err *err);
 int pipeline_method_parse(const char *name, int *method);
 const char *pipeline_method_name(int method);
 /* "crop,reject,support,angles", "all" or "none" -> PIPE_SKIP_* bits. */

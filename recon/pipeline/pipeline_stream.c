@@ -59,6 +59,45 @@ static int stream_pick_scale(stream *s)
     return SL_OK;
 }
 
+/* Does the frame carry light: at least two different finite pixels?
+ * *nonfinite counts the frames with no finite pixel at all. */
+static int frame_lit(const float *f, size_t n, int *nonfinite)
+{
+    size_t i = 0;
+    while (i < n && !isfinite(f[i]))
+        i++;
+    if (i == n) {
+        (*nonfinite)++;
+        return 0;
+    }
+    for (float v0 = f[i]; i < n; i++)
+        if (isfinite(f[i]) && f[i] != v0)
+            return 1;
+    return 0;
+}
+
+/* A sequence with no light in any frame (all NaN/Inf, or constant) has
+ * nothing to reconstruct: every estimator would return zeros or a flat
+ * image with exit status 0.  Reads until the first lit frame, so a normal
+ * cube costs one frame read. */
+static int stream_check_light(stream *s, const char *what, sl_err *err)
+{
+    cube_reader_rewind(s->rd);
+    int rc, k = 0, nonfinite = 0, lit = 0;
+    while (!lit && (rc = stream_next(s)) == SL_OK) {
+        lit = frame_lit(s->frame, (size_t)s->w * s->h, &nonfinite);
+        k++;
+    }
+    cube_reader_rewind(s->rd);
+    if (lit)
+        return SL_OK;
+    if (rc != SL_EEND)
+        return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
+    return sl_seterr(err, SL_EDATA, "no light in %s: of its %d frames %d "
+                     "hold only NaN/Inf and %d are constant", what, k,
+                     nonfinite, k - nonfinite);
+}
+
 /* Learn the detector from the first raw frames (all of them with
  * learn_badpix) into *out; *rs stays NULL when there are too few. */
 static int learn_detector(stream *s, const pipeline_opts *o, rawstats **rs,
@@ -156,6 +195,8 @@ int stream_open(stream *s, const char *const *paths, int npaths,
         rc = sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
         goto close_stream;
     }
+    if ((rc = stream_check_light(s, paths[0], err)) != SL_OK)
+        goto close_stream;
     if (o->prep && (rc = stream_prep(s, o, err)) != SL_OK)
         goto close_stream;
     return SL_OK;

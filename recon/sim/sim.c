@@ -303,6 +303,32 @@ static int make_object(sim *s, const scene *sc)
     return rc;
 }
 
+/* Every component must land inside the frame: one outside is not
+ * imaged (or wraps round the FFT grid), so the cube would not hold the
+ * scene its header describes. */
+static int check_scene_in_frame(sim *s, const scene *sc)
+{
+    const sim_opts *o = &s->o;
+    double py = s->pscale * o->pixel_aspect;
+    for (int i = 0; i < scene_ncomp(sc); i++) {
+        const scene_comp *c = scene_comp_at(sc, i);
+        double r = c->kind == SCENE_DISK ? c->radius_arcsec : 0;
+        double x = c->x_arcsec / s->pscale + o->offset_x_px;
+        double y = c->y_arcsec / py + o->offset_y_px;
+        if (fabs(x) + r / s->pscale < o->width / 2.0 &&
+            fabs(y) + r / py < o->height / 2.0)
+            continue;
+        return sl_seterr(&s->err, SL_EINVAL, "component %d of scene '%s' "
+                         "(x %.4g, y %.4g arcsec%s) falls at (%.1f, %.1f) px "
+                         "from the centre, outside the %dx%d frame at %.4g "
+                         "arcsec/px: a smaller separation, a larger frame or "
+                         "a coarser plate scale", i + 1, scene_name(sc),
+                         c->x_arcsec, c->y_arcsec, r > 0 ? ", a disk" : "",
+                         x, y, o->width, o->height, s->pscale);
+    }
+    return SL_OK;
+}
+
 static int alloc_buffers(sim *s)
 {
     size_t MM = (size_t)s->M * s->M, MH = (size_t)s->M * (s->M / 2 + 1);
@@ -346,7 +372,8 @@ int sim_new(sim **out, const sim_opts *o, const mask *m, const scene *sc,
     if (!s)
         return sl_seterr(err, SL_ENOMEM, "out of memory");
     s->o = *o;
-    if ((rc = plan_sampling(s, m)) != SL_OK || (rc = alloc_buffers(s)) != SL_OK
+    if ((rc = plan_sampling(s, m)) != SL_OK ||
+        (rc = check_scene_in_frame(s, sc)) != SL_OK || (rc = alloc_buffers(s)) != SL_OK
         || (rc = make_pupil(s, m)) != SL_OK || (rc = sim_make_labels(s, m)) != SL_OK
         || (rc = make_screen(s)) != SL_OK || (rc = make_object(s, sc)) != SL_OK)
         goto free_sim;

@@ -30,8 +30,9 @@ TEST(binary_bench_json_one_row_per_run)
     int rc = run_cmd(&s, cmd_experiment, &out, &err, "specklab experiment", "binary-bench",
                      "--screens", "1,2,3", "--masks", "nrm17", "--frames", "60", "--json", NULL);
     JsonNode *n = parse(out);
-    JsonArray *a = n && JSON_NODE_HOLDS_ARRAY(n) ? json_node_get_array(n) : NULL;
-    int len = a ? (int)json_array_get_length(a) : -1, good = len == 3;
+    JsonArray *a = n && JSON_NODE_HOLDS_OBJECT(n) ? dcmd_arr(json_node_get_object(n), "runs") : NULL;
+    int len = a ? (int)json_array_get_length(a) : -1, good = len == 3 &&
+        dcmd_int(json_node_get_object(n), "runs_not_done", -1) == 0;
     char why[200] = "";
     for (int i = 0; good && i < 3; i++) {
         JsonObject *o = json_array_get_object_element(a, i);
@@ -407,9 +408,10 @@ TEST(real_daemon_failed_run_and_two_clients)
                      "--json", NULL);
     rd_stop(&r);
     JsonNode *n = parse(out);
-    JsonArray *a = n && JSON_NODE_HOLDS_ARRAY(n) ? json_node_get_array(n) : NULL;
+    JsonArray *a = n && JSON_NODE_HOLDS_OBJECT(n) ? dcmd_arr(json_node_get_object(n), "runs") : NULL;
     JsonObject *row = a && json_array_get_length(a) == 1 ? json_array_get_object_element(a, 0) : NULL;
-    int failed = row && !g_strcmp0(dcmd_str(row, "state"), "failed") &&
+    int failed = row && dcmd_int(json_node_get_object(n), "runs_not_done", -1) == 1 &&
+                 !g_strcmp0(dcmd_str(row, "state"), "failed") &&
                  dcmd_str(row, "exit_reason") && strstr(dcmd_str(row, "exit_reason"), "stage");
     char msg[600];
     snprintf(msg, sizeof msg, "exit %d, stdout %.300s, stderr %.200s", rc, out, e);

@@ -21,7 +21,7 @@
  * a binaries table at the first size; it ignores the other selections),
  * --blind (bench_blind.c: camera-like cubes without simulator keywords,
  * its own matrix and report).  Any of --scenes, --sizes, --frames,
- * --photons, --methods, --projections, --r2, --ref, --target-error,
+ * --photons, --methods, --projections, --r2-px, --ref, --target-error,
  * --skips replaces the preset's main sweep by one sweep built from the
  * preset's lists with those replaced.  Method auto is measured once per
  * target error. */
@@ -113,7 +113,7 @@ static int parse_configs(const sweep *sw, GArray *out)
     gchar **m = split(sw->methods);
     int rc = bcli_parse_ints("projections", sw->projections, 2, 3600, proj);
     if (!rc)
-        rc = bcli_parse_ints("r2", sw->r2, 0, 144, r2);
+        rc = bcli_parse_ints("r2-px", sw->r2, 0, 144, r2);
     if (!rc)
         rc = bcli_parse_doubles("target-error", sw->targets ? sw->targets : "0.1", tg);
     if (!rc)
@@ -333,9 +333,9 @@ static int run_sweep(ctx *c, const sweep *sw)
     gchar **scenes = split(sw->scenes);
     int rc = bcli_parse_sizes(sw->sizes, sizes);
     if (!rc)
-        rc = bcli_parse_doubles("seps", sw->seps ? sw->seps : "6", seps);
+        rc = bcli_parse_doubles("seps-lod", sw->seps ? sw->seps : "6", seps);
     if (!rc)
-        rc = bcli_parse_doubles("dms", sw->dms ? sw->dms : "1", dms);
+        rc = bcli_parse_doubles("dms-mag", sw->dms ? sw->dms : "1", dms);
     if (!rc)
         rc = bcli_parse_ints("frames", sw->frames, 1, 100000, frames);
     if (!rc)
@@ -504,7 +504,9 @@ static int bench_main(bench_args *a)
            "default", a->repeat,
            a->estimate ? "ESTIMATE" : "MEASURE", base);
     bcli_print_header();
-    int rc = run_all(&c);
+    int out = 0, rc = run_all(&c);
+    if (rc == 2) /* an option that does not parse: nothing ran, write nothing */
+        goto done;
     bcli_mark_fronts(c.rows);
     bcli_print_fronts(c.rows);
     bcli_print_scaling(c.rows);
@@ -515,7 +517,6 @@ static int bench_main(bench_args *a)
     bcli_print_auto(c.rows);
     if (a->skips_report)
         bcli_print_skips(c.rows);
-    int out = 0;
     fflush(stdout);
     const char *csv = a->csv ? a->csv : "bench.csv";
     const char *png = a->png ? a->png : "bench.png";
@@ -528,6 +529,7 @@ static int bench_main(bench_args *a)
     if (c.failures)
         fprintf(stderr, "specklab bench: %d point(s) failed (see the table)\n",
                 c.failures);
+done:
     cleanup(&c);
     g_array_free(c.rows, TRUE);
     g_array_free(c.refs, TRUE);
@@ -566,9 +568,9 @@ int cmd_bench(int argc, char **argv)
         {"target-error", 0, 0, G_OPTION_ARG_STRING, &a.targets, "auto's target errors 1 - c (default 0.1; e.g. 0.06,0.1,0.2)", "LIST"},
         {"skips", 0, 0, G_OPTION_ARG_STRING, &a.skips, "skip sets, / between sets (e.g. none/crop/all; default: all for auto, none otherwise)", "SETS"},
         {"projections", 0, 0, G_OPTION_ARG_STRING, &a.projections, "TSM projection counts (e.g. 6,18,180,360)", "LIST"},
-        {"r2", 0, 0, G_OPTION_ARG_STRING, &a.r2, "direct |u2| radii in px, 0 = 0.14 N (e.g. 8,16,28)", "LIST"},
-        {"seps", 0, 0, G_OPTION_ARG_STRING, &a.seps, "binary separations in lambda/D, D = mask extent (default 6)", "LIST"},
-        {"dms", 0, 0, G_OPTION_ARG_STRING, &a.dms, "binary magnitude differences (default 1)", "LIST"},
+        {"r2-px", 0, 0, G_OPTION_ARG_STRING, &a.r2, "direct |u2| radii in px, 0 = 0.14 N (e.g. 8,16,28)", "LIST"},
+        {"seps-lod", 0, 0, G_OPTION_ARG_STRING, &a.seps, "binary separations in lambda/D (LOD), D = mask extent (default 6)", "LIST"},
+        {"dms-mag", 0, 0, G_OPTION_ARG_STRING, &a.dms, "binary magnitude differences (default 1)", "LIST"},
         {"ref", 0, 0, G_OPTION_ARG_STRING, &a.ref, "reference variants: no, yes or both", "MODE"},
         {"repeat", 0, 0, G_OPTION_ARG_INT, &a.repeat, "runs per point, median reported (default 1; --speed 5)", "N"},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},

@@ -25,13 +25,14 @@
 
 #include "camera.h"
 #include "cli.h"
+#include "outfile.h"
 #include "io/cube.h"
 
 #define FLUSH_FRAMES 100
 
 typedef struct grab_args {
     char *camera, *backend, *roi, *pixfmt, *out;
-    int frames, timeout_ms, buffers, max_failed, binning, json;
+    int frames, timeout_ms, buffers, max_failed, binning, json, overwrite;
     double exposure_us, gain_db, frame_rate_hz;
 } grab_args;
 
@@ -454,6 +455,7 @@ static int run_grab(int argc, char **argv)
         {"max-failed", 0, 0, G_OPTION_ARG_INT, &a.max_failed, "give up after more damaged frames (default: --frames)", "N"},
         {"backend", 0, 0, G_OPTION_ARG_STRING, &a.backend, "camera backend (default aravis)", "NAME"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS cube (required)", "FILE"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace an existing output cube", NULL},
         {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print a JSON summary", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("- grab frames into a FITS cube");
@@ -474,6 +476,14 @@ static int run_grab(int argc, char **argv)
     }
     if (a.max_failed < 0)
         a.max_failed = a.frames;
+    /* written in place, not through a temporary: frames reach the disk as
+     * they come, so an interrupted grab keeps them (outfile.h) */
+    GError *ge = NULL;
+    if (!outfile_check(a.out, a.overwrite, NULL, 0, &ge)) {
+        fprintf(stderr, "%s: %s\n", argv[0], ge->message);
+        g_error_free(ge);
+        goto free_ctx;
+    }
     status = grab(&a, argv[0]);
 free_ctx:
     g_option_context_free(ctx);

@@ -432,8 +432,8 @@ int cmd_experiment(int argc, char **argv)
     bench_opts o = {0};
     o.frames = 100;
     GOptionEntry entries[] = {
-        {"screens", 's', 0, G_OPTION_ARG_STRING, &o.screens, "phase screens, names or slots, comma-separated (required)", "LIST"},
-        {"masks", 'm', 0, G_OPTION_ARG_STRING, &o.masks, "masks, names or slots, comma-separated (default nrm17)", "LIST"},
+        {"screens", 0, 0, G_OPTION_ARG_STRING, &o.screens, "phase screens, names or slots, comma-separated (required)", "LIST"},
+        {"masks", 0, 0, G_OPTION_ARG_STRING, &o.masks, "masks, names or slots, comma-separated (default nrm17)", "LIST"},
         {"frames", 'n', 0, G_OPTION_ARG_INT, &o.frames, "frames per run (default 100)", "N"},
         {"exposure-us", 0, 0, G_OPTION_ARG_INT, &o.exposure_us, "exposure per frame (default: the daemon's)", "US"},
         {"object", 0, 0, G_OPTION_ARG_STRING, &o.object, "object name recorded with each run", "NAME"},

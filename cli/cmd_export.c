@@ -12,6 +12,7 @@
 
 #include "cli.h"
 #include "cmd_daemon.h"
+#include "outfile.h"
 
 #define COPY_CHUNK (1 << 20)
 /* On-demand reconstruction of a long cube can take minutes. */
@@ -34,32 +35,20 @@ static char *resolve_path(client *c, const char *path)
     return g_strdup(path);
 }
 
-/* Copy src to dst through dst.tmp + fsync + rename, so DIR never holds a
- * half-copied FITS under its real name; sum (may be NULL) sees every byte. */
-static int copy_file(const char *src, const char *dst, GChecksum *sum, char **err)
+/* Every byte of in to out; 0, or -1 with *err set. */
+static int copy_bytes(int in, const char *src, int out, const char *dst,
+                      char *buf, GChecksum *sum, char **err)
 {
-    int rc = -1, in = open(src, O_RDONLY | O_CLOEXEC), out = -1;
-    char *tmp = g_strdup_printf("%s.tmp", dst);
-    char *buf = g_malloc(COPY_CHUNK);
-    if (in < 0) {
-        *err = g_strdup_printf("%s: %s", src, strerror(errno));
-        goto free_buf;
-    }
-    out = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (out < 0) {
-        *err = g_strdup_printf("%s: %s", tmp, strerror(errno));
-        goto close_in;
-    }
     for (;;) {
         ssize_t n = read(in, buf, COPY_CHUNK);
         if (n < 0 && errno == EINTR)
             continue;
         if (n < 0) {
             *err = g_strdup_printf("reading %s: %s", src, strerror(errno));
-            goto close_out;
+            return -1;
         }
         if (n == 0)
-            break;
+            return 0;
         if (sum)
             g_checksum_update(sum, (const guchar *)buf, n);
         for (ssize_t off = 0; off < n;) {
@@ -67,44 +56,70 @@ static int copy_file(const char *src, const char *dst, GChecksum *sum, char **er
             if (w < 0 && errno == EINTR)
                 continue;
             if (w < 0) {
-                *err = g_strdup_printf("writing %s: %s", tmp, strerror(errno));
-                goto close_out;
+                *err = g_strdup_printf("writing %s: %s", dst, strerror(errno));
+                return -1;
             }
             off += w;
         }
     }
-    if (fsync(out) < 0) {
-        *err = g_strdup_printf("fsync %s: %s", tmp, strerror(errno));
-        goto close_out;
+}
+
+/* Copy src to dst by outfile.h's rules (never over an input, an existing
+ * dst only with overwrite, through a temporary and rename) with an fsync
+ * before the rename, so DIR never holds a half-copied FITS under its real
+ * name; sum (may be NULL) sees every byte. */
+static int copy_file(const char *src, const char *dst, int overwrite,
+                     GChecksum *sum, char **err)
+{
+    outfile of;
+    GError *ge = NULL;
+    const char *in[] = {src};
+    if (!outfile_begin(&of, dst, overwrite, in, 1, &ge)) {
+        *err = g_strdup(ge->message);
+        g_error_free(ge);
+        return -1;
     }
-    rc = 0;
-close_out:
+    int rc = -1, fd = open(src, O_RDONLY | O_CLOEXEC), out = -1;
+    char *buf = g_malloc(COPY_CHUNK);
+    if (fd < 0) {
+        *err = g_strdup_printf("%s: %s", src, strerror(errno));
+        goto free_buf;
+    }
+    out = open(of.tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (out < 0) {
+        *err = g_strdup_printf("%s: %s", of.tmp, strerror(errno));
+        goto close_in;
+    }
+    rc = copy_bytes(fd, src, out, of.tmp, buf, sum, err);
+    if (rc == 0 && fsync(out) < 0) {
+        *err = g_strdup_printf("fsync %s: %s", of.tmp, strerror(errno));
+        rc = -1;
+    }
     if (close(out) < 0 && rc == 0) {
-        *err = g_strdup_printf("closing %s: %s", tmp, strerror(errno));
+        *err = g_strdup_printf("closing %s: %s", of.tmp, strerror(errno));
         rc = -1;
     }
-    if (rc == 0 && rename(tmp, dst) < 0) {
-        *err = g_strdup_printf("renaming %s: %s", tmp, strerror(errno));
+    if (rc == 0 && !outfile_commit(&of, &ge)) {
+        *err = g_strdup(ge->message);
+        g_error_free(ge);
         rc = -1;
     }
-    if (rc != 0)
-        unlink(tmp);
 close_in:
-    close(in);
+    close(fd);
 free_buf:
     g_free(buf);
-    g_free(tmp);
+    outfile_clear(&of);
     return rc;
 }
 
 /* Copy the daemon's file at path into dir as name; the exported name is
  * added to files (for the sidecar).  0 or 1 (message printed). */
 static int export_one(client *c, const char *path, const char *dir, const char *name,
-                      GChecksum *sum, JsonArray *files)
+                      int overwrite, GChecksum *sum, JsonArray *files)
 {
     char *src = resolve_path(c, path), *err = NULL;
     char *dst = g_build_filename(dir, name, NULL);
-    int rc = copy_file(src, dst, sum, &err);
+    int rc = copy_file(src, dst, overwrite, sum, &err);
     if (rc != 0) {
         fprintf(stderr, "specklab export: %s\n", err);
         g_free(err);
@@ -160,7 +175,65 @@ static int write_sidecar(const char *path, JsonObject *res, JsonObject *exp)
 }
 
 /* Copy everything of the run (res = the `run` reply) into dir. */
-static int export_run(client *c, JsonObject *res, const char *dir, int json)
+/* Every file export_run would write, checked before the first is copied
+ * (outfile.h), so a refusal never leaves half an export. */
+static int check_destinations(JsonObject *res, const char *dir, const char *uuid,
+                              int overwrite)
+{
+    GHashTable *used = g_hash_table_new_full(g_str_hash, g_str_equal, g_free, NULL);
+    GPtrArray *dst = g_ptr_array_new_with_free_func(g_free);
+    const char *file = dcmd_str(dcmd_obj(res, "run"), "file");
+    if (file)
+        g_ptr_array_add(dst, export_name(file, 0, used));
+    JsonArray *recs = dcmd_arr(res, "reconstructions");
+    for (guint i = 0; recs && i < json_array_get_length(recs); i++) {
+        JsonObject *x = json_array_get_object_element(recs, i);
+        const char *outs[] = {dcmd_str(x, "fits"), dcmd_str(x, "png")};
+        for (int k = 0; k < 2; k++)
+            if (outs[k])
+                g_ptr_array_add(dst, export_name(outs[k], dcmd_int(x, "id", i), used));
+    }
+    g_ptr_array_add(dst, g_strdup_printf("%s.json", uuid));
+    GError *ge = NULL;
+    int ok = 1;
+    for (guint i = 0; ok && i < dst->len; i++) {
+        char *path = g_build_filename(dir, (const char *)dst->pdata[i], NULL);
+        ok = outfile_check(path, overwrite, NULL, 0, &ge);
+        g_free(path);
+    }
+    if (!ok) {
+        fprintf(stderr, "specklab export: %s\n", ge->message);
+        g_error_free(ge);
+    }
+    g_ptr_array_free(dst, TRUE);
+    g_hash_table_destroy(used);
+    return ok;
+}
+
+/* What was exported, as a JSON object or lines. */
+static void export_report(const char *uuid, const char *dir, JsonArray *files,
+                          const char *side, int verified, int status, int json)
+{
+    if (json) {
+        JsonObject *o = json_object_new();
+        json_object_set_string_member(o, "run", uuid);
+        json_object_set_string_member(o, "dir", dir);
+        json_object_set_array_member(o, "files", json_array_ref(files));
+        json_object_set_string_member(o, "sidecar", side);
+        json_object_set_boolean_member(o, "ok", status == 0);
+        dcmd_print_object(o);
+        json_object_unref(o);
+        return;
+    }
+    printf("run %s exported to %s:\n", uuid, dir);
+    for (guint i = 0; i < json_array_get_length(files); i++)
+        printf("  %s%s\n", json_array_get_string_element(files, i),
+               i == 0 && verified ? "  (sha256 verified)" : "");
+    printf("  %s\n", side);
+}
+
+static int export_run(client *c, JsonObject *res, const char *dir, int json,
+                      int overwrite)
 {
     JsonObject *run = dcmd_obj(res, "run");
     const char *uuid = dcmd_str(run, "uuid");
@@ -172,6 +245,8 @@ static int export_run(client *c, JsonObject *res, const char *dir, int json)
         fprintf(stderr, "specklab export: cannot create %s: %s\n", dir, strerror(errno));
         return 1;
     }
+    if (!check_destinations(res, dir, uuid, overwrite))
+        return 2;
     int status = 0;
     JsonObject *exp = json_object_new();
     JsonArray *files = json_array_new();
@@ -180,7 +255,7 @@ static int export_run(client *c, JsonObject *res, const char *dir, int json)
     if (file) {
         GChecksum *sum = g_checksum_new(G_CHECKSUM_SHA256);
         char *name = export_name(file, 0, used);
-        status |= export_one(c, file, dir, name, sum, files);
+        status |= export_one(c, file, dir, name, overwrite, sum, files);
         if (!status && want) {
             int same = !g_ascii_strcasecmp(g_checksum_get_string(sum), want);
             json_object_set_boolean_member(exp, "sha256_verified", same);
@@ -206,7 +281,7 @@ static int export_run(client *c, JsonObject *res, const char *dir, int json)
             if (!outs[k])
                 continue;
             char *name = export_name(outs[k], dcmd_int(x, "id", i), used);
-            status |= export_one(c, outs[k], dir, name, NULL, files);
+            status |= export_one(c, outs[k], dir, name, overwrite, NULL, files);
             g_free(name);
         }
     }
@@ -217,22 +292,7 @@ static int export_run(client *c, JsonObject *res, const char *dir, int json)
     json_object_set_string_member(exp, "socket", client_path(c));
     json_object_set_array_member(exp, "files", json_array_ref(files));
     status |= write_sidecar(side, res, exp);
-    if (json) {
-        JsonObject *o = json_object_new();
-        json_object_set_string_member(o, "run", uuid);
-        json_object_set_string_member(o, "dir", dir);
-        json_object_set_array_member(o, "files", json_array_ref(files));
-        json_object_set_string_member(o, "sidecar", side);
-        json_object_set_boolean_member(o, "ok", status == 0);
-        dcmd_print_object(o);
-        json_object_unref(o);
-    } else {
-        printf("run %s exported to %s:\n", uuid, dir);
-        for (guint i = 0; i < json_array_get_length(files); i++)
-            printf("  %s%s\n", json_array_get_string_element(files, i),
-                   i == 0 && file && want && !status ? "  (sha256 verified)" : "");
-        printf("  %s\n", side);
-    }
+    export_report(uuid, dir, files, side, file && want && !status, status, json);
     g_free(at);
     g_date_time_unref(now);
     g_free(side);
@@ -246,8 +306,10 @@ int cmd_export(int argc, char **argv)
 {
     dcmd_opts o = {0};
     char *dir = NULL;
+    int overwrite = 0;
     GOptionEntry entries[] = {
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &dir, "directory to write into (default .)", "DIR"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &overwrite, "replace files already in DIR", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("RUN-ID - copy a run's FITS and reconstructions, with a JSON sidecar");
     g_option_context_add_main_entries(ctx, entries, NULL);
@@ -270,7 +332,7 @@ int cmd_export(int argc, char **argv)
     if (!(c = dcmd_connect(&o, "specklab export")) ||
         dcmd_call(c, "specklab export", "run", args, DCMD_QUERY_MS, &res))
         goto free_client;
-    status = export_run(c, res, dir ? dir : ".", o.json);
+    status = export_run(c, res, dir ? dir : ".", o.json, overwrite);
     json_object_unref(res);
 free_client:
     client_free(c);
@@ -305,7 +367,8 @@ static void print_recon(const char *run, JsonObject *x)
 }
 
 /* -o / --png: copy the daemon's output where the user asked. */
-static int copy_out(client *c, JsonObject *x, const char *key, const char *dst)
+static int copy_out(client *c, JsonObject *x, const char *key, const char *dst,
+                    int overwrite)
 {
     const char *src = dcmd_str(x, key);
     if (!dst)
@@ -315,7 +378,7 @@ static int copy_out(client *c, JsonObject *x, const char *key, const char *dst)
         return 1;
     }
     char *path = resolve_path(c, src), *err = NULL;
-    int rc = copy_file(path, dst, NULL, &err);
+    int rc = copy_file(path, dst, overwrite, NULL, &err);
     if (rc != 0) {
         fprintf(stderr, "specklab recon: %s\n", err);
         g_free(err);
@@ -328,12 +391,13 @@ int cmd_recon_run(int argc, char **argv)
 {
     dcmd_opts o = {0};
     char *method = NULL, *out = NULL, *png = NULL;
-    int projections = 0, quiet = 0, timeout_s = RECON_TIMEOUT_S;
+    int projections = 0, quiet = 0, overwrite = 0, timeout_s = RECON_TIMEOUT_S;
     GOptionEntry entries[] = {
         {"method", 'm', 0, G_OPTION_ARG_STRING, &method, "direct|tsm|tsm-fourier (default: the daemon's)", "M"},
         {"projections", 'p', 0, G_OPTION_ARG_INT, &projections, "TSM projection angles", "N"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &out, "also copy the reconstruction FITS here", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &png, "also copy the PNG preview here", "FILE"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &overwrite, "replace existing -o/--png files", NULL},
         {"timeout-s", 0, 0, G_OPTION_ARG_INT, &timeout_s, "give up after S s (default 1800)", "S"},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "print nothing on success", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
@@ -358,6 +422,14 @@ int cmd_recon_run(int argc, char **argv)
                 method);
         goto free_args;
     }
+    GError *ge = NULL;
+    if ((out && !outfile_check(out, overwrite, NULL, 0, &ge)) ||
+        (png && !outfile_check(png, overwrite, NULL, 0, &ge))) {
+        /* before the daemon spends minutes on it */
+        fprintf(stderr, "specklab recon: %s\n", ge->message);
+        g_error_free(ge);
+        goto free_args;
+    }
     json_object_set_string_member(args, "run", argv[1]);
     if (method)
         json_object_set_string_member(args, "method", method);
@@ -372,7 +444,7 @@ int cmd_recon_run(int argc, char **argv)
         goto free_client;
     JsonObject *x = dcmd_obj(res, "reconstruction");
     const char *run = dcmd_str(res, "run") ? dcmd_str(res, "run") : argv[1];
-    status = copy_out(c, x, "fits", out) | copy_out(c, x, "png", png);
+    status = copy_out(c, x, "fits", out, overwrite) | copy_out(c, x, "png", png, overwrite);
     if (o.json)
         dcmd_print_object(res);
     else if (!quiet && x)

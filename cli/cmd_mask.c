@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "outfile.h"
 #include "sim/mask.h"
 
 static int load(const char *name, mask **m, sl_err *e)
@@ -67,7 +68,8 @@ int cmd_mask(int argc, char **argv)
     mask_gen_defaults(&g);
     gint64 seed = (gint64)g.seed;
     char *out = NULL;
-    int json = 0, status = 2;
+    int json = 0, overwrite = 0, status = 2;
+    outfile of = {0};
     mask *m = NULL;
     sl_err e = {0};
     GOptionEntry entries[] = {
@@ -78,6 +80,7 @@ int cmd_mask(int argc, char **argv)
         {"seed", 0, 0, G_OPTION_ARG_INT64, &seed, "search seed (default 17)", "N"},
         {"iterations", 0, 0, G_OPTION_ARG_INT, &g.iterations, "annealing moves per restart", "N"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &out, "write the mask file", "FILE"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &overwrite, "replace an existing mask file", NULL},
         {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("generate | show NAME|FILE");
@@ -87,6 +90,13 @@ int cmd_mask(int argc, char **argv)
         "show: describe nrm17, full, or a mask file ('hole_diameter_m D' then 'x_m y_m' lines).");
     if (!cli_parse(ctx, &argc, &argv))
         goto free_ctx;
+    GError *ge = NULL;
+    const char *in[] = {argc == 3 ? argv[2] : NULL};
+    if (out && !outfile_begin(&of, out, overwrite, in, 1, &ge)) {
+        fprintf(stderr, "specklab mask: %s\n", ge->message);
+        g_error_free(ge);
+        goto free_ctx;
+    }
     int rc;
     if (argc == 2 && !strcmp(argv[1], "generate")) {
         g.seed = (uint64_t)seed;
@@ -102,8 +112,13 @@ int cmd_mask(int argc, char **argv)
         fprintf(stderr, "specklab mask: %s\n", e.msg);
         goto free_ctx;
     }
-    if (out && mask_write(m, out, &e) != SL_OK) {
+    if (out && mask_write(m, of.tmp, &e) != SL_OK) {
         fprintf(stderr, "specklab mask: %s\n", e.msg);
+        goto free_mask;
+    }
+    if (out && !outfile_commit(&of, &ge)) {
+        fprintf(stderr, "specklab mask: %s\n", ge->message);
+        g_error_free(ge);
         goto free_mask;
     }
     show(m, json);
@@ -111,6 +126,7 @@ int cmd_mask(int argc, char **argv)
 free_mask:
     mask_free(m);
 free_ctx:
+    outfile_clear(&of);
     g_option_context_free(ctx);
     g_free(out);
     return status;

@@ -13,11 +13,12 @@
 #include "pipeline/pipeline.h"
 #include "spectra/powspec.h"
 #include "io/preview.h"
+#include "outfile.h"
 #include "tsm/tsm.h"
 
 typedef struct recon_args {
     char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
-    int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary;
+    int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary, overwrite;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
 
@@ -211,6 +212,30 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     return 1;
 }
 
+/* The image and the PNG may be written (outfile.h): neither is one of the
+ * inputs, the reference, the target or the bad-pixel map. */
+static int outputs_begin(const recon_args *a, char **inputs, int ninputs,
+                         outfile *fo, outfile *fp)
+{
+    GPtrArray *in = g_ptr_array_new();
+    for (int i = 0; i < ninputs; i++)
+        g_ptr_array_add(in, inputs[i]);
+    g_ptr_array_add(in, a->ref);
+    g_ptr_array_add(in, a->target);
+    g_ptr_array_add(in, a->badpix);
+    GError *gerr = NULL;
+    const char *const *v = (const char *const *)in->pdata;
+    int ok = outfile_begin(fo, a->out, a->overwrite, v, (int)in->len, &gerr) &&
+             (!a->png || outfile_begin(fp, a->png, a->overwrite, v, (int)in->len, &gerr));
+    if (!ok) {
+        fprintf(stderr, "specklab recon: %s\n", gerr->message);
+        g_error_free(gerr);
+        outfile_clear(fo);
+    }
+    g_ptr_array_free(in, TRUE);
+    return ok;
+}
+
 static int recon_run(recon_args *a, char **inputs, int ninputs)
 {
     pipeline_opts o;
@@ -221,26 +246,37 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
         fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
         return 2;
     }
+    outfile fo = {0}, fp = {0};
+    if (!outputs_begin(a, inputs, ninputs, &fo, &fp))
+        return 2;
     pipeline_result r;
     sl_err e = {0};
+    int status = 1;
     if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
         fprintf(stderr, "specklab recon: %s\n", e.msg);
-        return 1;
+        status = e.code == SL_EINVAL ? 2 : 1;
+        goto clear_outputs;
     }
     if (o.tsm_corrected_phases && r.report.method != PIPE_DIRECT && !r.report.corrected_phases)
         fprintf(stderr, "specklab recon: warning: --tsm-phases corrected needs photon "
                 "statistics (header SIMPHOT or --photons); the phases are raw\n");
     seq img = {r.width, r.height, 1, r.image};
-    int status = 0;
-    if (cube_write(a->out, &img, &r.meta, &e) != SL_OK ||
-        (a->png && preview_write_png(a->png, r.image, r.width, r.height,
+    GError *gerr = NULL;
+    if (cube_write(fo.tmp, &img, &r.meta, &e) != SL_OK ||
+        (a->png && preview_write_png(fp.tmp, r.image, r.width, r.height,
                                      stretch, &e) != SL_OK)) {
         fprintf(stderr, "specklab recon: %s\n", e.msg);
-        status = 1;
+    } else if (!outfile_commit(&fo, &gerr) || (a->png && !outfile_commit(&fp, &gerr))) {
+        fprintf(stderr, "specklab recon: %s\n", gerr->message);
+        g_error_free(gerr);
     } else {
         recon_report(a, &o, &r, inputs[0]);
+        status = 0;
     }
     pipeline_result_clear(&r);
+clear_outputs:
+    outfile_clear(&fo);
+    outfile_clear(&fp);
     return status;
 }
 
@@ -256,11 +292,11 @@ int cmd_recon(int argc, char **argv)
     recon_args a = {0};
     a.refine = -1;
     GOptionEntry entries[] = {
-        {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier|auto (default tsm)", "M"},
+        {"method", 'm', 0, G_OPTION_ARG_STRING, &a.method, "direct|tsm|tsm-fourier|auto (default auto: chosen from the data)", "M"},
         {"target-error", 0, 0, G_OPTION_ARG_DOUBLE, &a.target_error, "auto: the 1 - c wanted (default 0.1)", "E"},
         {"skips", 0, 0, G_OPTION_ARG_STRING, &a.skips, "reject,crop,support,angles|all|none (default: all for auto, none otherwise)", "LIST"},
         {"projections", 'p', 0, G_OPTION_ARG_INT, &a.projections, "TSM projection angles (default 180)", "N"},
-        {"r2", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size)", "PX"},
+        {"r2-px", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size)", "PX"},
         {"ref", 0, 0, G_OPTION_ARG_FILENAME, &a.ref, "point-source reference sequence (transfer-function calibration)", "FITS"},
         {"target", 0, 0, G_OPTION_ARG_FILENAME, &a.target, "with --ref: PSF wanted in the result (e.g. cophased)", "FITS"},
         {"wiener", 0, 0, G_OPTION_ARG_DOUBLE, &a.wiener, "reference regulariser (default 1e-3 direct, 0.05 TSM)", "X"},
@@ -282,6 +318,7 @@ int cmd_recon(int argc, char **argv)
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
         {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace existing output files (never an input)", NULL},
         {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print one JSON object", NULL},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &a.quiet, "print nothing on success", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};

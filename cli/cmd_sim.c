@@ -24,6 +24,7 @@
 #include "io/cube.h"
 #include "sim/mask.h"
 #include "io/preview.h"
+#include "outfile.h"
 #include "sim/scene.h"
 #include "sim/sim.h"
 #include "sim/sim_file.h"
@@ -35,11 +36,11 @@ typedef struct sim_args {
     char *scene, *mask, *size, *out, *png, *object;
     char *offset_px, *phase_model, *truth_out;
     double sep_arcsec, pa_deg, dm, wavelength_nm, plate_scale, r0_m, L0_m;
-    double wind_mps, wind_dir_deg, interval_ms, exposure_ms;
+    double wind_mps, wind_dir_deg, interval_ms, exposure_us;
     double photons, read_noise_e, gain, bias_adu, saturation_adu;
     double hot_level_adu, jitter_px, pixel_aspect, aperture_m, obstruction;
     gint64 seed;
-    int frames, no_turbulence, json, quiet;
+    int frames, no_turbulence, json, quiet, overwrite;
     int adc_bits, hot_pixels, dead_pixels, blind;
     char *truth_path;   /* the sidecar's path when --blind (g_free) */
 } sim_args;
@@ -57,7 +58,7 @@ static void defaults(sim_args *a)
     a->L0_m = 0;
     a->wind_mps = o.wind_mps;
     a->interval_ms = o.frame_interval_s * 1e3;
-    a->exposure_ms = o.exposure_s * 1e3;
+    a->exposure_us = o.exposure_s * 1e6;
     a->gain = o.gain_e_per_adu;
     a->saturation_adu = o.saturation_adu;
     a->hot_level_adu = o.hot_level_adu;
@@ -218,17 +219,16 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
     return rc;
 }
 
-static int write_pngs(sim *s, const char *prefix, float *buf, sl_err *e)
+static const char *const png_what[] = {"frame0", "truth", "cophased"};
+
+static int write_pngs(sim *s, outfile *png, float *buf, sl_err *e)
 {
     const sim_opts *o = sim_options(s);
-    static const char *what[] = {"frame0", "truth", "cophased"};
     for (int i = 0; i < 3; i++) {
         int rc = i == 0 ? sim_frame(s, 0, buf) : i == 1 ? sim_truth(s, buf)
                                                          : sim_cophased(s, buf);
-        char path[4096];
-        snprintf(path, sizeof path, "%s-%s.png", prefix, what[i]);
         if (rc == SL_OK)
-            rc = preview_write_png(path, buf, o->width, o->height,
+            rc = preview_write_png(png[i].tmp, buf, o->width, o->height,
                                    PREVIEW_SQRT, e);
         if (rc != SL_OK)
             return rc;
@@ -322,34 +322,86 @@ static int extra_opts(const sim_args *a, sim_opts *o)
     return 1;
 }
 
+/* Every file sim writes (outfile.h): the cube, the --blind sidecar and
+ * the three previews, checked against the scene and mask files it reads
+ * before anything is simulated. */
+typedef struct sim_outputs {
+    outfile cube, truth, png[3];
+} sim_outputs;
+
+static void outputs_clear(sim_outputs *f)
+{
+    outfile_clear(&f->cube);
+    outfile_clear(&f->truth);
+    for (int i = 0; i < 3; i++)
+        outfile_clear(&f->png[i]);
+}
+
+static int outputs_begin(sim_args *a, sim_outputs *f)
+{
+    memset(f, 0, sizeof *f);
+    const char *in[] = {a->scene, a->mask};
+    GError *gerr = NULL;
+    int ok = outfile_begin(&f->cube, a->out, a->overwrite, in, 2, &gerr);
+    if (ok && a->blind) {
+        char *side = sim_file_sidecar_path(a->out);
+        a->truth_path = g_strdup(a->truth_out ? a->truth_out : side);
+        free(side);
+        if (!strcmp(a->truth_path, a->out))
+            g_set_error(&gerr, G_OPTION_ERROR, G_OPTION_ERROR_BAD_VALUE,
+                        "--truth-out %s is the output cube itself", a->truth_path);
+        ok = !gerr && outfile_begin(&f->truth, a->truth_path, a->overwrite, in, 2, &gerr);
+    }
+    for (int i = 0; ok && a->png && i < 3; i++) {
+        char *path = g_strdup_printf("%s-%s.png", a->png, png_what[i]);
+        ok = outfile_begin(&f->png[i], path, a->overwrite, in, 2, &gerr);
+        g_free(path);
+    }
+    if (!ok) {
+        fprintf(stderr, "specklab sim: %s\n", gerr->message);
+        g_error_free(gerr);
+        outputs_clear(f);
+    }
+    return ok;
+}
+
+/* Rename every file written into place. */
+static int outputs_commit(const sim_args *a, sim_outputs *f, sl_err *e)
+{
+    GError *gerr = NULL;
+    int ok = outfile_commit(&f->cube, &gerr) &&
+             (!a->blind || outfile_commit(&f->truth, &gerr));
+    for (int i = 0; ok && a->png && i < 3; i++)
+        ok = outfile_commit(&f->png[i], &gerr);
+    if (!ok) {
+        sl_seterr(e, SL_EIO, "%s", gerr->message);
+        g_error_free(gerr);
+    }
+    return ok;
+}
+
 /* The cube, the --blind sidecar, the previews. */
-static int write_outputs(sim_args *a, sim *s, const scene *sc, const mask *m,
-                         float *buf, sl_err *e)
+static int write_outputs(const sim_args *a, sim_outputs *f, sim *s,
+                         const scene *sc, const mask *m, float *buf, sl_err *e)
 {
     cube_meta md;
     if (!a->blind) {
         fill_meta(&md, a, s, sc, m, 0);
-        if (write_cube(s, a->out, &md, buf, 1, e) != SL_OK)
+        if (write_cube(s, f->cube.tmp, &md, buf, 1, e) != SL_OK)
             return 0;
     } else {
-        char *side = sim_file_sidecar_path(a->out);
-        a->truth_path = g_strdup(a->truth_out ? a->truth_out : side);
-        free(side);
-        if (!strcmp(a->truth_path, a->out)) {
-            sl_seterr(e, SL_EINVAL, "--truth-out %s is the output cube itself",
-                      a->truth_path);
-            return 0;
-        }
         camera_meta(&md, a, s);
-        if (write_cube(s, a->out, &md, buf, 0, e) != SL_OK)
+        if (write_cube(s, f->cube.tmp, &md, buf, 0, e) != SL_OK)
             return 0;
         fill_meta(&md, a, s, sc, m, 1);
         /* the sidecar's own image is the truth */
         snprintf(md.bunit, sizeof md.bunit, "relative flux");
-        if (sim_file_write_sidecar(s, a->truth_path, &md, buf, e) != SL_OK)
+        if (sim_file_write_sidecar(s, f->truth.tmp, &md, buf, e) != SL_OK)
             return 0;
     }
-    return !a->png || write_pngs(s, a->png, buf, e) == SL_OK;
+    if (a->png && write_pngs(s, f->png, buf, e) != SL_OK)
+        return 0;
+    return outputs_commit(a, f, e);
 }
 
 static int run(sim_args *a)
@@ -379,7 +431,7 @@ static int run(sim_args *a)
     o.wind_mps = a->wind_mps;
     o.wind_dir_deg = a->wind_dir_deg;
     o.frame_interval_s = a->interval_ms * 1e-3;
-    o.exposure_s = a->exposure_ms * 1e-3;
+    o.exposure_s = a->exposure_us * 1e-6;
     o.turbulence = !a->no_turbulence;
     o.seed = (uint64_t)a->seed;
     o.photons_per_frame = a->photons;
@@ -389,14 +441,18 @@ static int run(sim_args *a)
     o.saturation_adu = a->saturation_adu;
     if (!extra_opts(a, &o))
         return 2;
+    sim_outputs f;
+    if (!outputs_begin(a, &f))
+        return 2;
     if (load_inputs(a, &sc, &m, &e) != SL_OK || sim_new(&s, &o, m, sc, &e) != SL_OK) {
         fprintf(stderr, "specklab sim: %s\n", e.msg);
+        status = e.code == SL_EINVAL ? 2 : 1; /* options that cannot be */
         goto free_inputs;
     }
     if (sim_warning(s)[0])
         fprintf(stderr, "specklab sim: warning: %s\n", sim_warning(s));
     buf = malloc(sizeof(float) * o.width * o.height);
-    if (!buf || !write_outputs(a, s, sc, m, buf, &e)) {
+    if (!buf || !write_outputs(a, &f, s, sc, m, buf, &e)) {
         fprintf(stderr, "specklab sim: %s\n", buf ? e.msg : "out of memory");
         goto free_sim;
     }
@@ -408,6 +464,7 @@ free_sim:
 free_inputs:
     mask_free(m);
     scene_free(sc);
+    outputs_clear(&f);
     return status;
 }
 
@@ -419,23 +476,23 @@ int cmd_sim(int argc, char **argv)
         {"scene", 0, 0, G_OPTION_ARG_STRING, &a.scene, "point|binary|six-star|extended|FILE (default binary)", "SCENE"},
         {"sep-arcsec", 0, 0, G_OPTION_ARG_DOUBLE, &a.sep_arcsec, "binary separation (default 0.2)", "ARCSEC"},
         {"pa-deg", 0, 0, G_OPTION_ARG_DOUBLE, &a.pa_deg, "binary position angle, from +y (N) towards -x (E) (default 30)", "DEG"},
-        {"dm", 0, 0, G_OPTION_ARG_DOUBLE, &a.dm, "binary magnitude difference (default 1)", "MAG"},
+        {"dm-mag", 0, 0, G_OPTION_ARG_DOUBLE, &a.dm, "binary magnitude difference (default 1)", "MAG"},
         {"frames", 'n', 0, G_OPTION_ARG_INT, &a.frames, "frames (default 100)", "N"},
-        {"size", 's', 0, G_OPTION_ARG_STRING, &a.size, "frame size N or WxH (default 256)", "N"},
+        {"size", 0, 0, G_OPTION_ARG_STRING, &a.size, "frame size N or WxH (default 256)", "N"},
         {"seed", 0, 0, G_OPTION_ARG_INT64, &a.seed, "random seed (default 1)", "N"},
         {"photons", 0, 0, G_OPTION_ARG_DOUBLE, &a.photons, "mean photons per frame; 0 = noiseless (default 0)", "N"},
         {"mask", 0, 0, G_OPTION_ARG_STRING, &a.mask, "nrm17|full|FILE (default nrm17)", "MASK"},
         {"wavelength-nm", 0, 0, G_OPTION_ARG_DOUBLE, &a.wavelength_nm, "wavelength (default 500)", "NM"},
-        {"plate-scale", 0, 0, G_OPTION_ARG_DOUBLE, &a.plate_scale, "arcsec per pixel; 0 = Nyquist (default 0)", "ARCSEC"},
+        {"plate-scale-arcsec", 0, 0, G_OPTION_ARG_DOUBLE, &a.plate_scale, "arcsec per pixel; 0 = Nyquist (default 0)", "ARCSEC"},
         {"r0-m", 0, 0, G_OPTION_ARG_DOUBLE, &a.r0_m, "Fried parameter at the wavelength (default 0.2)", "M"},
         {"L0-m", 0, 0, G_OPTION_ARG_DOUBLE, &a.L0_m, "outer scale; 0 = Kolmogorov (default 0)", "M"},
         {"wind-mps", 0, 0, G_OPTION_ARG_DOUBLE, &a.wind_mps, "wind speed (default 10)", "M/S"},
         {"wind-dir-deg", 0, 0, G_OPTION_ARG_DOUBLE, &a.wind_dir_deg, "wind direction from +x towards +y (default 0)", "DEG"},
         {"frame-interval-ms", 0, 0, G_OPTION_ARG_DOUBLE, &a.interval_ms, "time between frames (default 10)", "MS"},
-        {"exposure-ms", 0, 0, G_OPTION_ARG_DOUBLE, &a.exposure_ms, "exposure recorded in EXPTIME (default 10)", "MS"},
+        {"exposure-us", 0, 0, G_OPTION_ARG_DOUBLE, &a.exposure_us, "exposure recorded in EXPTIME (default 10000)", "US"},
         {"no-turbulence", 0, 0, G_OPTION_ARG_NONE, &a.no_turbulence, "cophased frames (no screen)", NULL},
         {"read-noise-e", 0, 0, G_OPTION_ARG_DOUBLE, &a.read_noise_e, "read noise, electrons rms (default 0)", "E"},
-        {"gain", 0, 0, G_OPTION_ARG_DOUBLE, &a.gain, "electrons per ADU (default 1)", "E/ADU"},
+        {"gain-e-per-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.gain, "detector gain (default 1)", "E"},
         {"bias-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.bias_adu, "bias level (default 0)", "ADU"},
         {"saturation-adu", 0, 0, G_OPTION_ARG_DOUBLE, &a.saturation_adu, "clip level (default 65535)", "ADU"},
         {"adc-bits", 0, 0, G_OPTION_ARG_INT, &a.adc_bits, "ADC bits: codes clipped to 2^N-1; 1..8 write BITPIX 8, 9..16 unsigned 16 (default 0 = no converter, float32)", "N"},
@@ -444,7 +501,7 @@ int cmd_sim(int argc, char **argv)
         {"dead-pixels", 0, 0, G_OPTION_ARG_INT, &a.dead_pixels, "dead pixels, 0 ADU (default 0)", "N"},
         {"offset-px", 0, 0, G_OPTION_ARG_STRING, &a.offset_px, "scene displaced from the frame centre, sub-pixel (default 0,0)", "X,Y"},
         {"jitter-px", 0, 0, G_OPTION_ARG_DOUBLE, &a.jitter_px, "per-frame tip-tilt jitter, rms per axis (default 0)", "PX"},
-        {"pixel-aspect", 0, 0, G_OPTION_ARG_DOUBLE, &a.pixel_aspect, "pixel height / width in [0.5, 2]; --plate-scale is the x pitch (default 1)", "A"},
+        {"pixel-aspect", 0, 0, G_OPTION_ARG_DOUBLE, &a.pixel_aspect, "pixel height / width in [0.5, 2]; --plate-scale-arcsec is the x pitch (default 1)", "A"},
         {"phase-model", 0, 0, G_OPTION_ARG_STRING, &a.phase_model, "screen|piston: piston = each hole's mean phase, hole masks only (default screen)", "MODEL"},
         {"aperture-m", 0, 0, G_OPTION_ARG_DOUBLE, &a.aperture_m, "diameter of --mask full (default 1.1)", "M"},
         {"obstruction", 0, 0, G_OPTION_ARG_DOUBLE, &a.obstruction, "central obstruction of --mask full, fraction of the diameter (default 0)", "F"},
@@ -453,6 +510,7 @@ int cmd_sim(int argc, char **argv)
         {"object", 0, 0, G_OPTION_ARG_STRING, &a.object, "OBJECT keyword (default the scene name)", "NAME"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS file (required)", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write PREFIX-frame0/truth/cophased.png", "PREFIX"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace existing output files", NULL},
         {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print a JSON summary", NULL},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &a.quiet, "print nothing on success", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};

@@ -19,7 +19,9 @@ static const char *method_names[] = {"direct", "tsm", "tsm-fourier", "auto"};
 void pipeline_opts_defaults(pipeline_opts *o)
 {
     memset(o, 0, sizeof *o);
-    o->method = PIPE_TSM;
+    /* auto: the method, crop and angles chosen from the data (probe.h,
+     * autoconf.h); the one default the CLI and specklabd share */
+    o->method = PIPE_AUTO;
     o->window = POWSPEC_WIN_TUKEY;
     o->tukey_alpha = 0.25;
     o->prep = 1;

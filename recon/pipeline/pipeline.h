@@ -61,7 +61,7 @@ enum pipeline_skip {
 };
 
 typedef struct pipeline_opts {
-    int method;               /* enum pipeline_method */
+    int method;               /* enum pipeline_method; default PIPE_AUTO */
     int nangles;              /* TSM projections; 0 = 180 */
     int r2_px;                /* direct: |u2| radius; 0 = 0.14 min(w, h) */
     int window;               /* POWSPEC_WIN_*; default TUKEY */

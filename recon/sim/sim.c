@@ -303,9 +303,10 @@ static int make_object(sim *s, const scene *sc)
     return rc;
 }
 
-/* Every component must land inside the frame: one outside is not
- * imaged (or wraps round the FFT grid), so the cube would not hold the
- * scene its header describes. */
+/* Every star must land inside the frame and every disk must overlap it:
+ * a component outside is not imaged (or wraps round the FFT grid), so the
+ * cube would not hold the scene its header describes.  A disk larger than
+ * the field (a flat sky, a planet filling it) is fine. */
 static int check_scene_in_frame(sim *s, const scene *sc)
 {
     const sim_opts *o = &s->o;
@@ -315,8 +316,8 @@ static int check_scene_in_frame(sim *s, const scene *sc)
         double r = c->kind == SCENE_DISK ? c->radius_arcsec : 0;
         double x = c->x_arcsec / s->pscale + o->offset_x_px;
         double y = c->y_arcsec / py + o->offset_y_px;
-        if (fabs(x) + r / s->pscale < o->width / 2.0 &&
-            fabs(y) + r / py < o->height / 2.0)
+        if (fabs(x) - r / s->pscale < o->width / 2.0 &&
+            fabs(y) - r / py < o->height / 2.0)
             continue;
         return sl_seterr(&s->err, SL_EINVAL, "component %d of scene '%s' "
                          "(x %.4g, y %.4g arcsec%s) falls at (%.1f, %.1f) px "

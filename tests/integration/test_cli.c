@@ -436,7 +436,7 @@ TEST(binary_of_a_cube_and_closure_keywords)
     char *cube = g_strdup_printf("%s/b.fits", s.dir), *img = g_strdup_printf("%s/r.fits", s.dir);
     char *out = NULL, *err = NULL, *out2 = NULL, *err2 = NULL;
     int rc = run_local(&s, cmd_sim, &out, &err, "specklab sim", "--scene", "binary",
-                       "--sep-arcsec", "0.6", "--pa-deg", "140", "--dm", "1.5", "--size", "96",
+                       "--sep-arcsec", "0.6", "--pa-deg", "140", "--dm-mag", "1.5", "--size", "96",
                        "--frames", "40", "-q", "-o", cube, NULL);
     g_free(out);
     g_free(err);

@@ -193,7 +193,7 @@ TEST(headers_and_bitpix_follow_the_features)
                            "--adc-bits", "8", "--jitter-px", "0.3", "-q", "-o", b, NULL);
     int rc = rb ? rb : sim(&f, "--size", "32", "--frames", "2", "--photons", "5000",
                            "--pixel-aspect", "1.25", "--mask", "full", "--aperture-m",
-                           "0.35", "--obstruction", "0.3", "--plate-scale", "0.2", "-q",
+                           "0.35", "--obstruction", "0.3", "--plate-scale-arcsec", "0.2", "-q",
                            "-o", c, NULL);
     cube_meta ma, mb, mc;
     int n;

@@ -74,6 +74,11 @@ typedef struct pipeline_opts {
     int recentre;             /* recentre frames on the cloud (default 1;
                                * needs detect) */
     const char *badpix_path;  /* a bad-pixel map (FITS, nonzero = bad) */
+    /* Calibration frames, each a FITS image or a cube (averaged): a dark
+     * (or bias) in the frames' ADU, subtracted; a flat field, already
+     * dark-subtracted, divided after normalising to mean 1.  NULL: none. */
+    const char *dark_path;
+    const char *flat_path;
     double saturation_adu;    /* raw values >= this are repaired; 0 = none */
     /* Photon statistics: > 0 given; 0 = from the header (SIMPHOT,
      * SIMGAIN) when present; < 0 = treat the data as not photon counts. */

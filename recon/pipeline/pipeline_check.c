@@ -73,6 +73,11 @@ int pipeline_opts_check(const pipeline_opts *o, sl_err *e)
     if (o->refine_iters < -1 || o->refine_iters > MAX_REFINE)
         return sl_seterr(e, SL_EINVAL, "refine %d: want -1 (automatic), 0 "
                          "(none) or up to %d passes", o->refine_iters, MAX_REFINE);
+    const char *cal = o->dark_path ? "dark" : o->flat_path ? "flat"
+                      : o->badpix_path ? "bad-pixel map" : NULL;
+    if (cal && !o->prep)
+        return sl_seterr(e, SL_EINVAL, "a %s is applied by the frame "
+                         "cleaning, which is off (no-prep)", cal);
     if (o->target_path && !o->ref_path)
         return sl_seterr(e, SL_EINVAL, "target PSF %s: it replaces a "
                          "reference's; give the reference (--ref)", o->target_path);

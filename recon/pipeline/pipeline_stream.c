@@ -144,6 +144,51 @@ static int read_badpix(stream *s, const char *path, sl_err *err)
     return rc;
 }
 
+/* A calibration frame: the mean of every frame in path (one image or a
+ * stack), times the stream's scale; *out is w*h floats (free it).
+ * Streams the stack, so a long one costs one frame and one double sum. */
+static int read_calibration(const stream *s, const char *path, const char *what,
+                            float **out, sl_err *err)
+{
+    cube_reader *rd = NULL;
+    const char *paths[] = {path};
+    size_t n = (size_t)s->w * s->h;
+    sl_err e = {0};
+    int rc = cube_reader_open(&rd, paths, 1, 0, &e);
+    if (rc != SL_OK)
+        return sl_seterr(err, rc, "%s frame: %s", what, e.msg);
+    double *sum = calloc(n, sizeof *sum);
+    float *f = malloc(n * sizeof *f);
+    int k = 0;
+    if (cube_reader_width(rd) != s->w || cube_reader_height(rd) != s->h) {
+        rc = sl_seterr(err, SL_EFORMAT, "%s frame %s is %dx%d; the frames are "
+                       "%dx%d", what, path, cube_reader_width(rd),
+                       cube_reader_height(rd), s->w, s->h);
+        goto free_all;
+    }
+    if (!sum || !f) {
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory for the %s frame", what);
+        goto free_all;
+    }
+    for (; (rc = cube_reader_next(rd, f)) == SL_OK; k++)
+        for (size_t i = 0; i < n; i++)
+            sum[i] += f[i];
+    if (rc != SL_EEND) {
+        rc = sl_seterr(err, rc, "%s frame: %s", what, cube_reader_errmsg(rd));
+        goto free_all;
+    }
+    for (size_t i = 0; i < n; i++)
+        f[i] = (float)(sum[i] / k * s->scale);
+    *out = f;
+    f = NULL;
+    rc = SL_OK;
+free_all:
+    free(f);
+    free(sum);
+    cube_reader_free(rd);
+    return rc;
+}
+
 /* Frame cleaning, from the options and the detector learnt. */
 static int stream_prep(stream *s, const pipeline_opts *o, sl_err *err)
 {
@@ -156,7 +201,17 @@ static int stream_prep(stream *s, const pipeline_opts *o, sl_err *err)
     po.window = PREP_WIN_NONE;   /* the estimators apodise themselves */
     po.saturation_adu = o->saturation_adu > 0 ? o->saturation_adu * s->scale
                                               : s->det.sat_level;
-    if ((rc = prep_new(&s->pp, s->w, s->h, &po, err)) != SL_OK)
+    float *dark = NULL, *flat = NULL;
+    if ((o->dark_path && (rc = read_calibration(s, o->dark_path, "dark", &dark, err)) != SL_OK) ||
+        (o->flat_path && (rc = read_calibration(s, o->flat_path, "flat", &flat, err)) != SL_OK))
+        goto free_cal;
+    po.dark = dark;
+    po.flat = flat;
+    rc = prep_new(&s->pp, s->w, s->h, &po, err); /* copies them */
+free_cal:
+    free(dark);
+    free(flat);
+    if (rc != SL_OK)
         goto free_rs;
     if (rs)
         prep_set_badmap(s->pp, rawstats_badmap(rs));

@@ -26,6 +26,7 @@
 #include "camera.h"
 #include "cli.h"
 #include "outfile.h"
+#include "progress.h"
 #include "io/cube.h"
 
 #define FLUSH_FRAMES 100
@@ -316,6 +317,90 @@ free_cols:
     return s ? SL_EIO : SL_OK;
 }
 
+/* What a grab took: the rows of every buffer delivered, the frames
+ * stored and damaged, the camera clock of the first and last stored. */
+typedef struct grab_state {
+    GArray *rows;
+    int stored, failed;
+    uint64_t t_first, t_last;
+} grab_state;
+
+/* Pop frames into the cube until a->frames are stored; 0, or 1 after a
+ * message (the frames stored so far stay in the cube). */
+static int grab_frames(const grab_args *a, const char *prog, camera *c,
+                       const camera_config *cf, cube_writer *w, float *pix,
+                       size_t npx, grab_state *g)
+{
+    camera_frame fr = {.f32 = pix, .capacity_px = npx};
+    /* notes go to stderr plainly when it is not a terminal (--json) */
+    progress *pg = progress_new(stderr, a->frames);
+    int status = 1;
+    while (g->stored < a->frames) {
+        progress_update(pg, g->stored, "frames");
+        int rc = camera_pop(c, a->timeout_ms, &fr);
+        if (rc != SL_OK && rc != SL_ERANGE) {
+            progress_note(pg, "%s: %s (after %d frames)", prog, camera_errmsg(c), g->stored);
+            goto done;
+        }
+        frame_row r = {fr.frame_id, fr.cam_ts_ns, fr.sys_ts_ns, (int)fr.status, -1};
+        /* A good frame of another size (ROI changed behind our back) is
+         * not stored either. */
+        if (fr.status == CAMERA_FRAME_SUCCESS && (fr.width != cf->width || fr.height != cf->height))
+            r.status = CAMERA_FRAME_SIZE_MISMATCH;
+        if (r.status == CAMERA_FRAME_SUCCESS) {
+            if (cube_writer_append(w, pix) != SL_OK) {
+                progress_note(pg, "%s: %s", prog, cube_writer_errmsg(w));
+                goto done;
+            }
+            r.cube_idx = g->stored++;
+            g->t_first = g->stored == 1 ? fr.cam_ts_ns : g->t_first;
+            g->t_last = fr.cam_ts_ns;
+            if (g->stored % FLUSH_FRAMES == 0)
+                cube_writer_flush(w);
+        } else if (++g->failed > a->max_failed) {
+            g_array_append_val(g->rows, r);
+            progress_note(pg, "%s: camera %s: %d damaged frames (last %s), more than "
+                          "--max-failed %d: is the link dropping packets?", prog, a->camera,
+                          g->failed, camera_frame_status_name(r.status), a->max_failed);
+            goto done;
+        }
+        g_array_append_val(g->rows, r);
+    }
+    status = 0;
+done:
+    progress_free(pg);
+    return status;
+}
+
+static void grab_report(const grab_args *a, const camera_config *cf, const grab_state *g,
+                        const camera_stats *st, int status, double el)
+{
+    double fps = g->stored > 1 && g->t_last > g->t_first
+                     ? (g->stored - 1) / ((g->t_last - g->t_first) * 1e-9) : NAN;
+    if (a->json) {
+        JsonBuilder *b = json_builder_new();
+        json_builder_begin_object(b);
+        cli_json_str(b, "output", a->out), cli_json_str(b, "camera", a->camera);
+        cli_json_int(b, "stored", g->stored), cli_json_int(b, "failed", (gint64)st->failed);
+        cli_json_int(b, "missing_packets", (gint64)st->missing_packets);
+        cli_json_int(b, "underruns", (gint64)st->underruns), cli_json_int(b, "id_gaps", (gint64)st->id_gaps);
+        cli_json_int(b, "width", cf->width), cli_json_int(b, "height", cf->height);
+        cli_json_str(b, "pixel_format", camera_pixfmt_name(cf->pixel_format));
+        cli_json_num(b, "fps", fps), cli_json_num(b, "elapsed_s", el);
+        cli_json_int(b, "ok", status == 0);
+        json_builder_end_object(b);
+        cli_print_json(b);
+        g_object_unref(b);
+        return;
+    }
+    printf("%s %s: %d frames %dx%d %s stored, %llu failed, %llu missing packets, "
+           "%llu underruns, %llu frame ids lost; %.1f fps (camera clock), %.2f s\n",
+           status == 0 ? "wrote" : "partial", a->out, g->stored, cf->width, cf->height,
+           camera_pixfmt_name(cf->pixel_format), (unsigned long long)st->failed,
+           (unsigned long long)st->missing_packets, (unsigned long long)st->underruns,
+           (unsigned long long)st->id_gaps, fps, el);
+}
+
 static int grab(const grab_args *a, const char *prog)
 {
     sl_err e = {0};
@@ -324,10 +409,9 @@ static int grab(const grab_args *a, const char *prog)
     camera_info in;
     camera_config cf;
     camera_stats st = {0};
-    GArray *rows = g_array_new(FALSE, FALSE, sizeof(frame_row));
+    grab_state g = {g_array_new(FALSE, FALSE, sizeof(frame_row)), 0, 0, 0, 0};
     float *pix = NULL;
-    int status = 1, stored = 0, failed = 0;
-    uint64_t t_first = 0, t_last = 0;
+    int status = 1;
     gint64 t0 = g_get_monotonic_time();
     if (camera_open(&c, a->backend, a->camera, &e) != SL_OK) {
         fprintf(stderr, "%s: %s\n", prog, e.msg);
@@ -356,39 +440,7 @@ static int grab(const grab_args *a, const char *prog)
         fprintf(stderr, "%s: %s\n", prog, camera_errmsg(c));
         goto close_cube;
     }
-    camera_frame fr = {.f32 = pix, .capacity_px = npx};
-    while (stored < a->frames) {
-        int rc = camera_pop(c, a->timeout_ms, &fr);
-        if (rc != SL_OK && rc != SL_ERANGE) {
-            fprintf(stderr, "%s: %s (after %d frames)\n", prog, camera_errmsg(c), stored);
-            goto stop_camera;
-        }
-        frame_row r = {fr.frame_id, fr.cam_ts_ns, fr.sys_ts_ns, (int)fr.status, -1};
-        /* A good frame of another size (ROI changed behind our back) is
-         * not stored either. */
-        if (fr.status == CAMERA_FRAME_SUCCESS && (fr.width != cf.width || fr.height != cf.height))
-            r.status = CAMERA_FRAME_SIZE_MISMATCH;
-        if (r.status == CAMERA_FRAME_SUCCESS) {
-            if (cube_writer_append(w, pix) != SL_OK) {
-                fprintf(stderr, "%s: %s\n", prog, cube_writer_errmsg(w));
-                goto stop_camera;
-            }
-            r.cube_idx = stored++;
-            t_first = stored == 1 ? fr.cam_ts_ns : t_first;
-            t_last = fr.cam_ts_ns;
-            if (stored % FLUSH_FRAMES == 0)
-                cube_writer_flush(w);
-        } else if (++failed > a->max_failed) {
-            g_array_append_val(rows, r);
-            fprintf(stderr, "%s: camera %s: %d damaged frames (last %s), more than "
-                    "--max-failed %d: is the link dropping packets?\n", prog, a->camera,
-                    failed, camera_frame_status_name(r.status), a->max_failed);
-            goto stop_camera;
-        }
-        g_array_append_val(rows, r);
-    }
-    status = 0;
-stop_camera:
+    status = grab_frames(a, prog, c, &cf, w, pix, npx, &g);
     camera_stop(c);
     camera_stats_get(c, &st);
 close_cube:
@@ -397,42 +449,19 @@ close_cube:
         status = 1;
     } else {
         char msg[512];
-        if (write_table(a->out, (const frame_row *)(void *)rows->data, (long)rows->len, &st,
-                        msg, sizeof msg) != SL_OK) {
+        if (write_table(a->out, (const frame_row *)(void *)g.rows->data, (long)g.rows->len,
+                        &st, msg, sizeof msg) != SL_OK) {
             fprintf(stderr, "%s: %s\n", prog, msg);
             status = 1;
         }
     }
     cube_writer_free(w);
-    double el = (g_get_monotonic_time() - t0) * 1e-6;
-    double fps = stored > 1 && t_last > t_first ? (stored - 1) / ((t_last - t_first) * 1e-9) : NAN;
-    if (a->json) {
-        JsonBuilder *b = json_builder_new();
-        json_builder_begin_object(b);
-        cli_json_str(b, "output", a->out), cli_json_str(b, "camera", a->camera);
-        cli_json_int(b, "stored", stored), cli_json_int(b, "failed", (gint64)st.failed);
-        cli_json_int(b, "missing_packets", (gint64)st.missing_packets);
-        cli_json_int(b, "underruns", (gint64)st.underruns), cli_json_int(b, "id_gaps", (gint64)st.id_gaps);
-        cli_json_int(b, "width", cf.width), cli_json_int(b, "height", cf.height);
-        cli_json_str(b, "pixel_format", camera_pixfmt_name(cf.pixel_format));
-        cli_json_num(b, "fps", fps), cli_json_num(b, "elapsed_s", el);
-        cli_json_int(b, "ok", status == 0);
-        json_builder_end_object(b);
-        cli_print_json(b);
-        g_object_unref(b);
-    } else {
-        printf("%s %s: %d frames %dx%d %s stored, %llu failed, %llu missing packets, "
-               "%llu underruns, %llu frame ids lost; %.1f fps (camera clock), %.2f s\n",
-               status == 0 ? "wrote" : "partial", a->out, stored, cf.width, cf.height,
-               camera_pixfmt_name(cf.pixel_format), (unsigned long long)st.failed,
-               (unsigned long long)st.missing_packets, (unsigned long long)st.underruns,
-               (unsigned long long)st.id_gaps, fps, el);
-    }
+    grab_report(a, &cf, &g, &st, status, (g_get_monotonic_time() - t0) * 1e-6);
 close_camera:
     free(pix);
     camera_close(c);
 free_rows:
-    g_array_free(rows, TRUE);
+    g_array_free(g.rows, TRUE);
     return status;
 }
 

@@ -14,6 +14,7 @@
 #include "spectra/powspec.h"
 #include "io/preview.h"
 #include "outfile.h"
+#include "progress.h"
 #include "tsm/tsm.h"
 
 typedef struct recon_args {
@@ -215,6 +216,12 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     return 1;
 }
 
+/* pipeline_opts.progress onto the bar (per mille of the frames fed). */
+static void recon_progress(void *ctx, double done, double total, const char *what)
+{
+    progress_update(ctx, 1000 * done / total, what);
+}
+
 /* The image and the PNG may be written (outfile.h): neither is one of the
  * inputs, the reference, the target or the bad-pixel map. */
 static int outputs_begin(const recon_args *a, char **inputs, int ninputs,
@@ -257,7 +264,15 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     pipeline_result r;
     sl_err e = {0};
     int status = 1;
-    if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
+    progress *pg = progress_new(stderr, 1000);
+    if (!a->quiet && !a->json) {
+        o.progress = recon_progress;
+        o.progress_ctx = pg;
+    }
+    int run = pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e);
+    progress_finish(pg);
+    progress_free(pg);
+    if (run != SL_OK) {
         fprintf(stderr, "specklab recon: %s\n", e.msg);
         status = e.code == SL_EINVAL ? 2 : 1;
         goto clear_outputs;

@@ -25,6 +25,7 @@
 #include "sim/mask.h"
 #include "io/preview.h"
 #include "outfile.h"
+#include "progress.h"
 #include "sim/scene.h"
 #include "sim/sim.h"
 #include "sim/sim_file.h"
@@ -196,7 +197,7 @@ static int finish_file(sim *s, cube_writer *w, float *buf, sl_err *e)
 
 /* The frame cube; with_truth adds the extensions (not for --blind). */
 static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
-                      int with_truth, sl_err *e)
+                      int with_truth, progress *pg, sl_err *e)
 {
     const sim_opts *o = sim_options(s);
     cube_writer *w = NULL;
@@ -205,6 +206,7 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
     if (rc != SL_OK)
         return rc;
     for (int k = 0; k < o->nframes && rc == SL_OK; k++) {
+        progress_update(pg, k, "frames");
         rc = sim_frame(s, k, buf);
         if (rc != SL_OK)
             sl_seterr(e, rc, "frame %d: %s", k, sim_errmsg(s));
@@ -385,14 +387,22 @@ static int write_outputs(const sim_args *a, sim_outputs *f, sim *s,
                          const scene *sc, const mask *m, float *buf, sl_err *e)
 {
     cube_meta md;
+    progress *pg = progress_new(stderr, sim_options(s)->nframes);
+    int rc;
+    if (a->quiet || a->json) /* a bar only for a person watching */
+        progress_free(pg), pg = NULL;
     if (!a->blind) {
         fill_meta(&md, a, s, sc, m, 0);
-        if (write_cube(s, f->cube.tmp, &md, buf, 1, e) != SL_OK)
-            return 0;
+        rc = write_cube(s, f->cube.tmp, &md, buf, 1, pg, e);
     } else {
         camera_meta(&md, a, s);
-        if (write_cube(s, f->cube.tmp, &md, buf, 0, e) != SL_OK)
-            return 0;
+        rc = write_cube(s, f->cube.tmp, &md, buf, 0, pg, e);
+    }
+    progress_finish(pg);
+    progress_free(pg);
+    if (rc != SL_OK)
+        return 0;
+    if (a->blind) {
         fill_meta(&md, a, s, sc, m, 1);
         /* the sidecar's own image is the truth */
         snprintf(md.bunit, sizeof md.bunit, "relative flux");

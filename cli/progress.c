@@ -16,6 +16,7 @@ struct progress {
     FILE *f;
     int tty;
     double total;
+    double done;   /* the most reported so far: the bar never goes back */
     double t0_s, last_s;
     int drawn;   /* a bar is on the line */
 };
@@ -87,6 +88,11 @@ void progress_update(progress *p, double done, const char *label)
 {
     if (!p || !p->tty)
         return;
+    /* Callers estimate; a later, lower estimate (a run that restarted a
+     * count) must not move the bar back. */
+    if (done < p->done)
+        done = p->done;
+    p->done = done;
     double now = mono_s();
     if (p->last_s >= 0 && now - p->last_s < REDRAW_S && done < p->total)
         return;

@@ -19,7 +19,8 @@ progress *progress_new(FILE *f, double total);
 void progress_free(progress *p);
 /* Nonzero when the bar is drawn (f is a terminal). */
 int progress_active(const progress *p);
-/* done of total units so far; label (may be NULL) names the current step. */
+/* done of total units so far; label (may be NULL) names the current step.
+ * The bar never goes back: a done below an earlier one is ignored. */
 void progress_update(progress *p, double done, const char *label);
 /* Print a message line above the bar (or plainly when quiet), e.g. a run
  * that failed; the bar is redrawn at the next update. */

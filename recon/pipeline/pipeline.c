@@ -417,7 +417,9 @@ int pipeline_run(const char *const *paths, int npaths,
         goto close_s;
     if (o->ref_path) {
         const char *rp[] = {o->ref_path};
-        if ((rc = stream_open(&ref, rp, 1, o, err)) != SL_OK)
+        pipeline_opts ro = *o;
+        ro.progress = NULL; /* one bar: the object's frames */
+        if ((rc = stream_open(&ref, rp, 1, &ro, err)) != SL_OK)
             goto close_s;
         refp = &ref;
         if (ref.w != s.w || ref.h != s.h) {
@@ -445,6 +447,8 @@ int pipeline_run(const char *const *paths, int npaths,
         rc = sl_seterr(err, SL_ENOMEM, "out of memory");
         goto close_ref;
     }
+    /* direct: the power spectrum, then the bispectrum; TSM: one pass */
+    stream_expect_passes(&s, eo.method == PIPE_DIRECT ? 2 : 1);
     pipeline_report *rep = &out->report;
     rep->method = eo.method;
     rep->nframes_in = s.n;

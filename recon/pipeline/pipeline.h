@@ -111,6 +111,14 @@ typedef struct pipeline_opts {
                                * below); 0: the raw bispectrum */
     double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
                                * support with PIPE_SKIP_SUPPORT */
+    /* Progress, for a person waiting: called from pipeline_run's thread
+     * with every frame fed to an estimator (done and an estimate of the
+     * total, in frames fed; the total can grow as the run learns its plan,
+     * so a display must not let the fraction go back) and what is being
+     * accumulated ("power spectrum", "bispectrum", "projections").  NULL:
+     * none.  Cost: one call per frame. */
+    void (*progress)(void *ctx, double done, double total, const char *what);
+    void *progress_ctx;
     int closure_binary;       /* also fit a binary to the closure phases of
                                * direct's bispectrum or TSM's 1-D ones
                                * (closure.h) into the header:

@@ -38,6 +38,10 @@ typedef struct stream {
     double scale;
     rawstats_result det;  /* what the raw frames said (det_learnt) */
     int det_learnt;
+    /* pipeline_opts.progress: frames fed so far and the estimate of all */
+    void (*progress)(void *ctx, double done, double total, const char *what);
+    void *progress_ctx;
+    double fed, feed_total;
 } stream;
 
 /* Open paths for streaming; with o->prep, frames are cleaned as the
@@ -55,6 +59,8 @@ int stream_next(stream *s);
 /* Feed every (cleaned) frame of s to add(h, frame).  Cost: one read and
  * one prep per frame; allocation-free. */
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
+/* Expect passes more feeds of every frame (for the progress estimate). */
+void stream_expect_passes(stream *s, int passes);
 
 /* Photon statistics (pipeline_photons.c).  stream_photon_stats: photons
  * per frame and g (ADU per photon, in s's scaled units) from the options,

@@ -240,6 +240,9 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     s->w = cube_reader_width(s->rd);
     s->h = cube_reader_height(s->rd);
     s->n = cube_reader_nframes(s->rd);
+    s->progress = o->progress;
+    s->progress_ctx = o->progress_ctx;
+    s->feed_total = 2.0 * s->n; /* until the plan is known */
     s->frame = malloc(sizeof(float) * s->w * s->h);
     if (!s->frame) {
         rc = sl_seterr(err, SL_ENOMEM, "out of memory for a %dx%d frame",
@@ -260,9 +263,37 @@ close_stream:
     return rc;
 }
 
+void stream_expect_passes(stream *s, int passes)
+{
+    s->feed_total = s->fed + (double)passes * s->n;
+}
+
+/* add, counted for the progress callback. */
+typedef struct counted {
+    stream *s;
+    add_fn add;
+    void *h;
+    const char *what;
+} counted;
+
+static int counted_add(void *ctx, const float *frame)
+{
+    counted *c = ctx;
+    stream *s = c->s;
+    if (++s->fed > s->feed_total)
+        s->feed_total = s->fed + s->n; /* one more pass than planned */
+    s->progress(s->progress_ctx, s->fed, s->feed_total, c->what);
+    return c->add ? c->add(c->h, frame) : SL_OK;
+}
+
 int stream_feed(stream *s, add_fn add, void *h, const char *what,
                 sl_err *err)
 {
+    counted c = {s, add, h, what};
+    if (s->progress) {
+        add = counted_add;
+        h = &c;
+    }
     if (s->pb)
         return skip_feed(s, add, h, what, err);
     cube_reader_rewind(s->rd);

@@ -428,7 +428,8 @@ static void body_grab_stock(tc *t)
         fx_nap_ms(10);
     fx_bin(cli, sizeof cli, "specklab");
     char *gargv[] = {cli, "camera", "grab", "--camera", "127.0.0.1", "--frames", "25",
-                     "--roi", "0,0,64,48", "--frame-rate-hz", "200", "-o", out, NULL};
+                     "--roi", "0,0,64,48", "--frame-rate-hz", "200", "-o", out,
+                     "--overwrite" /* mkstemp made it */, NULL};
     char *help[] = {cli, "camera", "--help", NULL};
     int via_bin = access(cli, X_OK) == 0 && run_wait(help, 1) == 0, status = -1;
     if (via_bin)

@@ -105,18 +105,20 @@ static int stored_behind(JsonNode *r, const void *arg)
            ji(r, "result.reconstruct_queue") == 1;
 }
 
-/* TSM with 2048 angles on 100 whole frames: about ten seconds of CPU
- * (never spent: the kill ends it), while B's 20 frames take under one.
+/* The spatial TSM with 800 angles (about the most a 256 px frame
+ * resolves) on 100 whole 256^2 frames: several seconds of CPU (never
+ * spent: the kill ends it), while B's 20 frames take under one.
  * skips=none: the default crop and support cut would make A's
  * reconstruction short enough to end before B is stored. */
-BENCH_TEST(sigkill_stored_and_reconstructing, 120, NULL,
-           "[daemon]\nfftw=estimate\nskips=none\n")
+MATRIX_TEST(sigkill_stored_and_reconstructing, 120, NULL,
+            ((const char *const[]){"--size", "256x256", NULL}),
+            "[daemon]\nfftw=estimate\nskips=none\n")
 {
     dc *c = bench_client(b);
     char ua[40], ub[40];
     CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
     CHECK(mx_start(b, c, "{\"screen\": 1, \"mask\": 0, \"frames\": 100, \"reconstruct\": \"tsm\", "
-                   "\"projections\": 2048}", ua) == 0, "start-run A");
+                   "\"projections\": 800}", ua) == 0, "start-run A");
     CHECK(mx_start(b, c, "{\"screen\": 2, \"mask\": 0, \"frames\": 20, "
                    "\"reconstruct\": \"direct\"}",
                    ub) == 0, "start-run B");

@@ -67,6 +67,8 @@ static const char defaults_text[] =
     "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
     "fftw=measure\n"
     "max_clients=64\n"
+    "# a connection with no request in hand for this long is closed\n"
+    "client_idle_timeout_ms=30000\n"
     "# how long a catalogue write waits for another process's lock\n"
     "catalog_busy_timeout_ms=5000\n";
 
@@ -85,7 +87,7 @@ static const char *const known_keys[][16] = {
      NULL},
     {"paths", "data_dir", "catalog", NULL},
     {"daemon", "socket", "reconstruct", "projections", "tsm_phases", "skips", "fftw", "max_clients",
-     "catalog_busy_timeout_ms", NULL},
+     "client_idle_timeout_ms", "catalog_busy_timeout_ms", NULL},
 };
 
 int config_method_valid(const char *name)
@@ -419,6 +421,8 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
         return rc;
     if ((rc = get_int(kf, "daemon", "projections", 0, 0, 4096, &c->projections, err)) ||
         (rc = get_int(kf, "daemon", "max_clients", 64, 1, 4096, &c->max_clients, err)) ||
+        (rc = get_int(kf, "daemon", "client_idle_timeout_ms", 30000, 100, 86400000,
+                      &c->client_idle_timeout_ms, err)) ||
         (rc = get_int(kf, "daemon", "catalog_busy_timeout_ms", 5000, 10, 600000,
                       &c->catalog_busy_timeout_ms, err)))
         return rc;

@@ -13,7 +13,7 @@
  *   [masks]   SLOT=NAME[:FILE] ... (built-in "full"/"nrm17", or a mask file)
  *   [paths]   data_dir catalog
  *   [daemon]  socket reconstruct projections tsm_phases skips fftw max_clients
- *             catalog_busy_timeout_ms
+ *             client_idle_timeout_ms catalog_busy_timeout_ms
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
  * typo must not silently fall back to a default).  Relative paths are
@@ -69,6 +69,8 @@ typedef struct config {
                                  * (effective when cubes carry GAIN) */
     int fftw_measure;           /* 1: FFTW_MEASURE with DATA_DIR/fftw-wisdom */
     int max_clients;
+    int client_idle_timeout_ms; /* a connection with nothing in hand this
+                                 * long is closed (server.h) */
     int catalog_busy_timeout_ms; /* a write waits this long for another
                                   * process's lock, then fails "locked" */
 } config;

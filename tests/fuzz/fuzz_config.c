@@ -106,7 +106,8 @@ static void check_values(const config *c, const char *path)
         g_free(canon);
     }
     require(config_method_valid(c->reconstruct) && in(c->projections, 0, 4096) &&
-                in(c->max_clients, 1, 4096) && (c->fftw_measure == 0 || c->fftw_measure == 1) &&
+                in(c->max_clients, 1, 4096) && in(c->client_idle_timeout_ms, 100, 86400000) &&
+                (c->fftw_measure == 0 || c->fftw_measure == 1) &&
                 (c->tsm_corrected_phases == 0 || c->tsm_corrected_phases == 1) &&
                 in(c->skips, 0, 15),
             "daemon values", path);

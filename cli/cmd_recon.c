@@ -13,10 +13,11 @@
 #include "pipeline/pipeline.h"
 #include "spectra/powspec.h"
 #include "io/preview.h"
+#include "skyfig.h"
 #include "tsm/tsm.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
+    char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
     int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
@@ -216,16 +217,40 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     return 1;
 }
 
+/* --stretch and --cut into the figure's options; 0 after a usage error. */
+static int display_from_args(const recon_args *a, skyfig_opts *f)
+{
+    skyfig_opts_init(f);
+    if (a->stretch && preview_stretch_parse(a->stretch, &f->stretch) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
+        return 0;
+    }
+    if (a->cut && display_cut_parse(a->cut, &f->cut) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --cut '%s' (artifacts, full)\n", a->cut);
+        return 0;
+    }
+    return 1;
+}
+
+/* The figure (--png) and the pixel-exact quick-look (--png-raw). */
+static int write_pngs(const recon_args *a, skyfig_opts *f, const pipeline_result *r,
+                      const char *input, sl_err *e)
+{
+    int rc = a->png_raw ? preview_write_png(a->png_raw, r->image, r->width, r->height,
+                                            f->stretch, e) : SL_OK;
+    if (rc != SL_OK || !a->png)
+        return rc;
+    const char *base = strrchr(input, '/');
+    skyfig_opts_from_result(f, r, r->meta.object[0] ? NULL : base ? base + 1 : input);
+    return skyfig_write_png(a->png, r->image, r->width, r->height, f, e);
+}
+
 static int recon_run(recon_args *a, char **inputs, int ninputs)
 {
     pipeline_opts o;
-    if (!opts_from_args(a, &o))
+    skyfig_opts fig;
+    if (!opts_from_args(a, &o) || !display_from_args(a, &fig))
         return 2;
-    preview_stretch stretch = PREVIEW_SQRT;
-    if (a->stretch && preview_stretch_parse(a->stretch, &stretch) != SL_OK) {
-        fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
-        return 2;
-    }
     pipeline_result r;
     sl_err e = {0};
     if (pipeline_run((const char *const *)inputs, ninputs, &o, &r, &e) != SL_OK) {
@@ -238,8 +263,7 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     seq img = {r.width, r.height, 1, r.image};
     int status = 0;
     if (cube_write(a->out, &img, &r.meta, &e) != SL_OK ||
-        (a->png && preview_write_png(a->png, r.image, r.width, r.height,
-                                     stretch, &e) != SL_OK)) {
+        write_pngs(a, &fig, &r, inputs[0], &e) != SL_OK) {
         fprintf(stderr, "specklab recon: %s\n", e.msg);
         status = 1;
     } else {
@@ -285,8 +309,10 @@ int cmd_recon(int argc, char **argv)
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default -1: up to 40 when the phase recursion's closure misfit says it went astray; 0: none)", "N"},
         {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "also measure a binary (closure phases, image, power-spectrum fringes) and say whether the data support it: measured, ambiguous, unresolved or inconsistent (header MEAS*, CP*, FR*)", NULL},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
-        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
-        {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
+        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a figure: the image enlarged, north up, with title, scale bar, compass and colour bar", "FILE"},
+        {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default asinh)", "S"},
+        {"cut", 0, 0, G_OPTION_ARG_STRING, &a.cut, "figure's low cut: artifacts (above 9 in 10 of the image's local maxima; default) or full (minimum to maximum)", "C"},
+        {"png-raw", 0, 0, G_OPTION_ARG_FILENAME, &a.png_raw, "also write a plain grey PNG, one pixel per image pixel (minimum to maximum, --stretch)", "FILE"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print one JSON object", NULL},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &a.quiet, "print nothing on success", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
@@ -317,7 +343,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
+    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.cut); g_free(a.png_raw); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
     return status;
 }
 

@@ -23,10 +23,10 @@
 #include "cli.h"
 #include "io/cube.h"
 #include "sim/mask.h"
-#include "io/preview.h"
 #include "sim/scene.h"
 #include "sim/sim.h"
 #include "sim/sim_file.h"
+#include "skyfig.h"
 
 /* INSTRUME of a --blind cube: a camera, not the simulator. */
 #define BLIND_INSTRUME "CMOS camera"
@@ -218,18 +218,28 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
     return rc;
 }
 
-static int write_pngs(sim *s, const char *prefix, float *buf, sl_err *e)
+/* Figures of frame 0 (the whole frame, minimum to maximum: speckles are
+ * the subject), the truth and the cophased image (zoomed, cut above the
+ * artifacts: the scene is the subject). */
+static int write_pngs(sim *s, const char *prefix, const char *object, float *buf,
+                      sl_err *e)
 {
     const sim_opts *o = sim_options(s);
     static const char *what[] = {"frame0", "truth", "cophased"};
+    static const char *title[] = {"frame 0", "truth", "cophased"};
     for (int i = 0; i < 3; i++) {
         int rc = i == 0 ? sim_frame(s, 0, buf) : i == 1 ? sim_truth(s, buf)
                                                          : sim_cophased(s, buf);
         char path[4096];
         snprintf(path, sizeof path, "%s-%s.png", prefix, what[i]);
+        skyfig_opts f;
+        skyfig_opts_init(&f);
+        snprintf(f.title, sizeof f.title, "%s \u00b7 simulated %s", object, title[i]);
+        f.plate_scale_arcsec = sim_plate_scale_arcsec(s);
+        f.stretch = i == 0 ? PREVIEW_SQRT : PREVIEW_ASINH;
+        f.cut = i == 0 ? DISPLAY_CUT_FULL : DISPLAY_CUT_ARTIFACTS;
         if (rc == SL_OK)
-            rc = preview_write_png(path, buf, o->width, o->height,
-                                   PREVIEW_SQRT, e);
+            rc = skyfig_write_png(path, buf, o->width, o->height, &f, e);
         if (rc != SL_OK)
             return rc;
     }
@@ -349,7 +359,8 @@ static int write_outputs(sim_args *a, sim *s, const scene *sc, const mask *m,
         if (sim_file_write_sidecar(s, a->truth_path, &md, buf, e) != SL_OK)
             return 0;
     }
-    return !a->png || write_pngs(s, a->png, buf, e) == SL_OK;
+    return !a->png || write_pngs(s, a->png, a->object ? a->object : scene_name(sc), buf,
+                                 e) == SL_OK;
 }
 
 static int run(sim_args *a)

@@ -13,7 +13,7 @@
 #include "catlock.h"
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
-#include "io/preview.h"
+#include "skyfig.h"
 #include "base/wisdom.h"
 
 typedef struct wjob {
@@ -117,6 +117,25 @@ static int insert_recon(catalog *c, void *catalog_recon_arg)
     return catalog_recon_insert(c, rec, &rec->id);
 }
 
+/* The reconstruction's figure, titled with OBJECT or, for a bench run
+ * without one, the run and what was in the beam. */
+static int write_figure(const wjob *j, const pipeline_result *res, const char *png,
+                        sl_err *e)
+{
+    char name[96];
+    const char *screen = NULL, *mask = NULL;
+    cube_meta_get_str(&res->meta, "SCREEN", &screen);
+    cube_meta_get_str(&res->meta, "MASK", &mask);
+    if (screen && mask)
+        snprintf(name, sizeof name, "run %.8s (%s, %s)", j->uuid, screen, mask);
+    else
+        snprintf(name, sizeof name, "run %.8s", j->uuid);
+    skyfig_opts f;
+    skyfig_opts_init(&f);
+    skyfig_opts_from_result(&f, res, res->meta.object[0] ? NULL : name);
+    return skyfig_write_png(png, res->image, res->width, res->height, &f, e);
+}
+
 static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
                        outputs *o, sl_err *e)
 {
@@ -150,8 +169,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
         goto clear_result;
     seq img = {res.width, res.height, 1, res.image};
     if ((rc = cube_write(o->fits, &img, &res.meta, e)) != SL_OK ||
-        (rc = preview_write_png(o->png, res.image, res.width, res.height, PREVIEW_ASINH, e)) !=
-            SL_OK)
+        (rc = write_figure(j, &res, o->png, e)) != SL_OK)
         goto clear_result;
     /* The verdict (recon/pipeline/pipeline_binary.c): the closure-phase fit, else
      * the image fit, else the power spectrum's fringes; catalogued as a

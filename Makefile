@@ -17,7 +17,7 @@ CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
 DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3
-FIG_PKGS   := cairo
+FIG_PKGS   := cairo fontconfig
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 ifeq ($(CI),true)

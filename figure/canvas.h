@@ -1,6 +1,9 @@
 /* canvas.h - the figure room's drawing surface: a white RGB cairo image,
  * text in a sans-serif face, written as an 8-bit RGB PNG.
  *
+ * One canvas at a time in a process: canvas_free releases cairo's and
+ * fontconfig's font caches (no cairo object may be alive then).
+ *
  * Coordinates are cairo's: pixels from the top-left corner, y down; a
  * pixel's centre is at (x + 0.5, y + 0.5), so a 1 px line meant to cover
  * one pixel row sits on a half-integer.  Only figure/ sees this header

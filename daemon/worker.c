@@ -8,6 +8,8 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include "catlock.h"
@@ -314,6 +316,21 @@ reply:
     g_free(o.quality);
 }
 
+/* Reconstruction yields to acquisition: on a bench PC it shares the CPUs
+ * with the run being acquired, whose frames are lost when the camera's
+ * buffers are not emptied and stored in time, whereas a reconstruction
+ * only ends later.  Nice 10 gives it about a tenth of a CPU's share beside
+ * a nice-0 thread that wants the CPU, and all of it otherwise; the threads
+ * it starts (the pipeline's team, FFTW's) inherit the value. */
+#define WORKER_NICE 10
+
+static void yield_to_acquisition(void)
+{
+    pid_t tid = (pid_t)syscall(SYS_gettid);
+    if (setpriority(PRIO_PROCESS, (id_t)tid, WORKER_NICE) != 0)
+        g_message("recon thread: cannot lower its priority: %s", g_strerror(errno));
+}
+
 /* DATA_DIR/fftw-wisdom: FFTW's planner state is global, so only this
  * thread (the daemon's one planner) imports and exports it. */
 static void wisdom(worker *w, int save)
@@ -330,6 +347,7 @@ static void wisdom(worker *w, int save)
 static gpointer thread_main(gpointer data)
 {
     worker *w = data;
+    yield_to_acquisition();
     wisdom(w, 0);
     for (;;) {
         g_mutex_lock(&w->mu);

@@ -15,6 +15,7 @@
 #include "io/preview.h"
 #include "skyfig.h"
 #include "tsm/tsm.h"
+#include "wds.h"
 
 typedef struct recon_args {
     char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
@@ -491,12 +492,13 @@ static int binary_of_cube(const char *path, int json)
 int cmd_binary(int argc, char **argv)
 {
     char *ext = NULL;
-    int json = 0, status = 2;
+    int json = 0, status = 2, wds = 0;
     seq *img = NULL;
     cube_meta m;
     GOptionEntry entries[] = {
         {"ext", 0, 0, G_OPTION_ARG_STRING, &ext, "read the image from this extension", "EXT"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
+        {"wds", 0, 0, G_OPTION_ARG_NONE, &wds, "print one WDS-style measure: Besselian epoch, theta, rho [arcsec], dm with errors (cli/wds.h)", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("IMAGE.fits|CUBE.fits - separation, position angle and dm of a binary");
     g_option_context_add_main_entries(ctx, entries, NULL);
@@ -512,6 +514,10 @@ int cmd_binary(int argc, char **argv)
         goto free_ctx;
     }
     status = 1;
+    if (wds) {
+        status = wds_binary(argv[1], ext, json);
+        goto free_ctx;
+    }
     sl_err e = {0};
     const char *paths[] = {argv[1]};
     if (!ext) {

@@ -31,6 +31,8 @@ static const char defaults_text[] =
     "plate_scale_arcsec=0.05934801016109636\n"
     "wavelength_nm=633\n"
     "lost_timeout_s=10\n"
+    "# the camera keeps this daemon in control this long without a heartbeat\n"
+    "heartbeat_timeout_ms=6000\n"
     "max_failed_frames=0\n"
     "# gain_e_per_adu=1       (at Gain 0 dB; unset: unknown, photon bias from the floor)\n"
     "# read_noise_e=2         (unset: unknown)\n"
@@ -81,7 +83,7 @@ static const char *const known_keys[][16] = {
     {"camera", "backend", "address", "exposure_us", "pixel_format",
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
      "lost_timeout_s", "max_failed_frames", "gain_e_per_adu", "read_noise_e",
-     NULL},
+     "heartbeat_timeout_ms", NULL},
     {"stage", "backend", "address", "unit", "device", "baud",
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
@@ -367,6 +369,8 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
                       &c->plate_scale_arcsec, err)) ||
         (rc = get_num(kf, "camera", "wavelength_nm", 633, 100, 30000, &c->wavelength_m, err)) ||
         (rc = get_num(kf, "camera", "lost_timeout_s", 10, 0.5, 3600, &c->lost_timeout_s, err)) ||
+        (rc = get_int(kf, "camera", "heartbeat_timeout_ms", 6000, 500, 600000,
+                      &c->heartbeat_timeout_ms, err)) ||
         (rc = get_int(kf, "camera", "max_failed_frames", 0, 0, INT_MAX, &c->max_failed_frames,
                       err)) ||
         (rc = get_num(kf, "camera", "gain_e_per_adu", NAN, 1e-4, 1e4, &c->gain_e_per_adu, err)) ||

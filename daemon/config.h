@@ -7,6 +7,7 @@
  *   [camera]  backend address exposure_us pixel_format frame_rate_hz roi
  *             buffers plate_scale_arcsec wavelength_nm lost_timeout_s
  *             max_failed_frames gain_e_per_adu read_noise_e
+ *             heartbeat_timeout_ms
  *   [stage]   backend address unit device baud move_timeout_ms settle_ms
  *             response_timeout_ms call_timeout_ms
  *   [screens] SLOT=NAME ...        (the phase-screen wheel)
@@ -43,6 +44,7 @@ typedef struct config {
     double plate_scale_arcsec;  /* PLTSCALE of acquired cubes */
     double wavelength_m;        /* WAVELEN */
     double lost_timeout_s;      /* no frame for this long: camera lost */
+    int heartbeat_timeout_ms;   /* GevHeartbeatTimeout set on the camera */
     int max_failed_frames;      /* damaged frames before a run fails;
                                  * <= 0: max(100, frames requested) */
     /* The detector's photon statistics, written as GAIN [e-/ADU, scaled

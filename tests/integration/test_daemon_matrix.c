@@ -42,7 +42,11 @@
  *                           when started right after the restart;
  *   stage_gone_during_move  the stage is killed mid-move and stays away:
  *                           the run fails after the call timeout's silence,
- *                           not at the 15 s move timeout.
+ *                           not at the 15 s move timeout;
+ *   camera_control_lost     the camera drops the daemon's control mid-run
+ *                           (as when its heartbeat timeout runs out on a
+ *                           busy host): the daemon takes it back and the run
+ *                           ends done, every frame the camera's own.
  */
 #include "daemon_fx.h"
 #include "matrix_fx.h"
@@ -450,9 +454,34 @@ BENCH_TEST(stage_gone_during_move, 90, slow_wheels, "[stage]\nmove_timeout_ms=15
     CHECK(v.frames == 0 && !v.file[0], "%d frames, file '%s'", v.frames, v.file);
 }
 
+/* ---- the camera ----------------------------------------------------------------- */
+
+BENCH_TEST(camera_control_lost, 90, NULL, "[camera]\nlost_timeout_s=10\n")
+{
+    dc *c = bench_client(b);
+    char uuid[40];
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    CHECK(mx_start(b, c, "{\"screen\": 3, \"mask\": 0, \"frames\": 600, \"reconstruct\": "
+                   "\"none\"}", uuid) == 0, "start-run");
+    gint64 told = dc_wait_progress(c, uuid, 100, 30);
+    CHECK(told >= 100, "no progress to 100 frames");
+    CHECK(kill(b->cam.pid, SIGUSR1) == 0, "SIGUSR1 to the fake camera: %s", strerror(errno));
+    JsonNode *e = mx_wait_end(b, c, uuid, 60, NULL);
+    CHECK(e && !g_strcmp0(js(e, "state"), "done"), "end after the camera dropped control: %s",
+          jtext(e));
+    mx_seen v;
+    if (mx_check_run(t, b, uuid, CATALOG_DONE, NULL, &v) || mx_check_frames(t, b, &v))
+        return;
+    CHECK(v.frames == 600, "%d frames", v.frames);
+    CHECK(mx_log_has(b, "taking the camera back") && mx_log_has(b, "camera back after"),
+          "the daemon's log does not say it took the camera back");
+}
+
 TC_MAIN(TC_CASE(sigkill_moving), TC_CASE(sigkill_acquiring),
         TC_CASE(sigkill_stored_and_reconstructing), TC_CASE(catalog_locked_briefly),
         TC_CASE(catalog_locked_long), TC_CASE(catalog_locked_at_stop),
         TC_CASE(packet_loss_1pct), TC_CASE(packet_loss_10pct), TC_CASE(packet_loss_over_limit),
         TC_CASE(stage_busy_during_move), TC_CASE(stage_restart_during_move),
-        TC_CASE(stage_restart_between_runs), TC_CASE(stage_gone_during_move))
+        TC_CASE(stage_restart_between_runs), TC_CASE(stage_gone_during_move),
+        TC_CASE(camera_control_lost))

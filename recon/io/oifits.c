@@ -88,6 +88,31 @@ static void key_str(fitsfile *fp, const char *k, const char *v, const char *c, i
     fits_write_key_str(fp, k, buf, c, st);
 }
 
+/* HISTORY cards of at most HIST_CARD characters: one entry per line of
+ * text, long lines wrapped at a blank (or cut where there is none). */
+#define HIST_CARD 70
+static void write_history(fitsfile *fp, const char *h, int *st)
+{
+    while (h && *h && !*st) {
+        size_t n = strcspn(h, "\n"), k = n;
+        if (k > HIST_CARD) {
+            k = HIST_CARD;
+            while (k > HIST_CARD / 2 && h[k] != ' ')
+                k--;
+            if (h[k] != ' ')
+                k = HIST_CARD;
+        }
+        char line[HIST_CARD + 1];
+        snprintf(line, sizeof line, "%.*s", (int)k, h);
+        fits_write_history(fp, line, st);
+        h += k;
+        while (*h == ' ')
+            h++;
+        if (k == n && *h == '\n')
+            h++;
+    }
+}
+
 static void primary_header(fitsfile *fp, const oifits_data *d, int *st)
 {
     fits_create_img(fp, BYTE_IMG, 0, NULL, st);
@@ -104,14 +129,7 @@ static void primary_header(fitsfile *fp, const oifits_data *d, int *st)
         key_str(fp, "OBSTECH", d->obstech, "observation technique", st);
     if (d->procsoft[0])
         key_str(fp, "PROCSOFT", d->procsoft, "software that made the data", st);
-    for (const char *h = d->history; h && *h && !*st;) {
-        const char *e = strchr(h, '\n');
-        size_t n = e ? (size_t)(e - h) : strlen(h);
-        char line[72];
-        snprintf(line, sizeof line, "%.*s", (int)(n < 71 ? n : 71), h);
-        fits_write_history(fp, line, st);
-        h += n + (e != NULL);
-    }
+    write_history(fp, d->history, st);
     fits_write_chksum(fp, st);
 }
 

@@ -36,7 +36,8 @@ static int fx_start(fx *f)
     snprintf(d->target, sizeof d->target, "a target name longer than sixteen");
     snprintf(d->arrname, sizeof d->arrname, "nrm17");
     snprintf(d->insname, sizeof d->insname, "specklab-nrm17");
-    d->history = "line one\nline two";
+    d->history = "line one\nline two is long enough that one card of seventy characters "
+                 "cannot hold it, so it is wrapped at a blank";
     for (int i = 0; i < 3; i++) {
         f->sta[i] = (oifits_station){"", "", 0.1, {-0.1 * i, 0.2 * i, 0}, 1.26};
         snprintf(f->sta[i].tel_name, sizeof f->sta[i].tel_name, "H%d", i + 1);
@@ -99,7 +100,13 @@ TEST(tables_read_back)
     double v2 = 0, t3phi = 0, t3u = 0;
     int sta3[3] = {0};
     static const char *ext[] = {"OI_TARGET", "OI_ARRAY", "OI_WAVELENGTH", "OI_VIS2", "OI_T3"};
+    int nhist = 0, nkeys = 0;
+    char card[FLEN_CARD], last[FLEN_CARD] = "";
     if (rc == SL_OK && fits_open_diskfile(&fp, f.path, READONLY, &st) == 0) {
+        fits_get_hdrspace(fp, &nkeys, NULL, &st);
+        for (int k = 1; k <= nkeys && !st; k++)
+            if (fits_read_record(fp, k, card, &st) == 0 && !strncmp(card, "HISTORY ", 8))
+                nhist++, snprintf(last, sizeof last, "%s", card + 8);
         fits_get_num_hdus(fp, &nhdu, &st);
         fits_read_key_str(fp, "CONTENT", s, NULL, &st);
         fits_verify_chksum(fp, &dataok, &hsum, &st);
@@ -138,6 +145,8 @@ TEST(tables_read_back)
     CHECK(rc == SL_OK, "%s", e.msg);
     CHECK(st == 0, "cfitsio status %d reading it back", st);
     CHECK(nhdu == 6 && !strcmp(s, "OIFITS2"), "%d HDUs, CONTENT '%s'", nhdu, s);
+    CHECK(nhist == 3 && !strncmp(last, "hold it, so it is wrapped at a blank", 36),
+          "%d HISTORY cards, the last '%s'", nhist, last);
     CHECK(ok_revn && !strcmp(frame, "SKY"), "OI_REVN 2 in every table; FRAME '%s'", frame);
     CHECK(!strcmp(tgt, "a target name lo"), "TARGET cut to 16: '%s'", tgt);
     CHECK(ok_units, "column units");

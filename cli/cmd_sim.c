@@ -9,7 +9,9 @@
  * 8- or 16-bit converter, else float32.
  *
  * --blind writes the cube as a camera would: only DATE-OBS, EXPTIME,
- * INSTRUME and (when given) OBJECT, no extensions.  Everything the
+ * INSTRUME, BUNIT and (when given) OBJECT, besides the standard header
+ * (io/cube.h; no WCS: a camera does not know its plate scale), and a
+ * HISTORY naming the sidecar; no extensions.  Everything the
  * simulator knows goes to a sidecar: its primary HDU is the truth (so a
  * reader opening it sees the keywords), then the TRUTH and COPHASED
  * extensions as in the normal output.
@@ -135,7 +137,13 @@ static void fill_meta(cube_meta *md, const sim_args *a, const sim *s,
              o->photons_per_frame > 0 ? "adu" : "relative flux");
     md->exptime_s = o->exposure_s;
     md->plate_scale_arcsec = sim_plate_scale_arcsec(s);
+    if (o->pixel_aspect != 1.0)
+        md->pixel_aspect = o->pixel_aspect;
     md->wavelength_m = o->wavelength_m;
+    cube_meta_add_history(md, "simulated by specklab sim: scene %s, mask %s, %d frames, "
+                          "seed %lld; every parameter is in the SIM*, MASK* and BIN* "
+                          "keywords", a->scene ? a->scene : "binary",
+                          a->mask ? a->mask : "nrm17", o->nframes, (long long)o->seed);
     cube_meta_set_str(md, "SIMSCENE", scene_name(sc), "scene");
     cube_meta_set_str(md, "SIMMASK", a->mask ? a->mask : mask_name(m), "pupil mask");
     cube_meta_set_num(md, "MASKNH", mask_nholes(m), "mask holes (0 = filled)");
@@ -181,7 +189,11 @@ static void camera_meta(cube_meta *md, const sim_args *a, const sim *s)
     snprintf(md->instrume, sizeof md->instrume, "%s", BLIND_INSTRUME);
     if (a->object)
         snprintf(md->object, sizeof md->object, "%s", a->object);
+    snprintf(md->bunit, sizeof md->bunit, "%s",
+             sim_options(s)->photons_per_frame > 0 ? "adu" : "relative flux");
     md->exptime_s = sim_options(s)->exposure_s;
+    cube_meta_add_history(md, "simulated camera frames (specklab sim --blind); the truth "
+                          "and the parameters are in %s", a->truth_path);
 }
 
 /* Add the truth extensions (with_truth) and close. */

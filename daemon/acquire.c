@@ -19,6 +19,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/version.h"
 #include "io/cube.h"
 #include "cubefile.h"
 #include "framelog.h"
@@ -257,6 +258,10 @@ static void fill_meta(acq *a, cube_meta *m)
     m->exptime_s = a->cf.exposure_us * 1e-6;
     m->plate_scale_arcsec = cfg->plate_scale_arcsec;
     m->wavelength_m = cfg->wavelength_m;
+    snprintf(m->creator, sizeof m->creator, "specklabd %s", SPECKLAB_VERSION);
+    cube_meta_add_history(m, "specklabd run %s: %d frames asked through screen %s (slot %d) "
+                          "and mask %s (slot %d)", sp->uuid, sp->frames, sp->screen,
+                          sp->screen_slot, sp->mask, sp->mask_slot);
     cube_meta_set_str(m, "RUNUUID", sp->uuid, "specklab run");
     cube_meta_set_str(m, "SCREEN", sp->screen, "phase screen in the beam");
     cube_meta_set_num(m, "SCRSLOT", sp->screen_slot, "screen wheel slot");

@@ -16,6 +16,7 @@
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
 #include "skyfig.h"
+#include "base/version.h"
 #include "base/wisdom.h"
 
 typedef struct wjob {
@@ -170,6 +171,7 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     if ((rc = output_paths(w, j, &o->fits, &o->png, e)) != SL_OK)
         goto clear_result;
     seq img = {res.width, res.height, 1, res.image};
+    snprintf(res.meta.creator, sizeof res.meta.creator, "specklabd %s", SPECKLAB_VERSION);
     if ((rc = cube_write(o->fits, &img, &res.meta, e)) != SL_OK ||
         (rc = write_figure(j, &res, o->png, e)) != SL_OK)
         goto clear_result;

@@ -27,12 +27,20 @@ typedef struct splodge {
     float *box;
 } splodge;
 
+/* A splodge centre that may reach into the one being searched, with its
+ * peak transfer in units of a baseline's (DC: nholes). */
+typedef struct centre {
+    double cp, cq, wt;
+} centre;
+
 typedef struct geom {
     int w, h, nholes, nb;
     double mx, my;  /* pupil metres per FFT index, along x and y */
     double d;       /* hole diameter [m] */
     double clean_max;
     splodge *sp;    /* nb, baseline (i, j) i < j in row order */
+    centre *near;   /* 2 nb + 1 of scratch: the centres near one splodge */
+    int nnear;
 } geom;
 
 /* Overlap of two holes of diameter d with centres t apart, over one
@@ -76,17 +84,31 @@ static double dist_m(const geom *g, double p, double q, double cp, double cq,
     return hypot(dp * g->mx, dq * g->my);
 }
 
-/* The transfer the other splodges (both signs, aliases) and DC add at
- * (p, q), baseline k's own excluded. */
-static double contamination(const geom *g, int k, int p, int q)
+/* The centres (DC, the other baselines of both signs, baseline k's
+ * mirror; aliased) within reach_m of baseline k's into g->near: only they
+ * can add to its splodge's box.  Without this cut the search costs one
+ * pass over all 2 nb + 1 centres per box pixel: 3.3 s for nrm17 at
+ * 1024^2. */
+static void near_centres(geom *g, int k, double reach_m)
 {
-    double c = g->nholes * overlap_rel(dist_m(g, p, q, 0, 0, 1), g->d);
-    for (int l = 0; l < g->nb; l++) {
-        const splodge *s = &g->sp[l];
-        if (l != k)
-            c += overlap_rel(dist_m(g, p, q, s->cp, s->cq, 1), g->d);
-        c += overlap_rel(dist_m(g, p, q, -s->cp, -s->cq, 1), g->d);
-    }
+    const splodge *o = &g->sp[k];
+    g->nnear = 0;
+    for (int l = -1; l < g->nb; l++)
+        for (int sgn = 1; sgn >= -1; sgn -= 2) {
+            if ((l == k && sgn > 0) || (l < 0 && sgn < 0))
+                continue;
+            double cp = l < 0 ? 0 : sgn * g->sp[l].cp, cq = l < 0 ? 0 : sgn * g->sp[l].cq;
+            if (dist_m(g, cp, cq, o->cp, o->cq, 1) < reach_m)
+                g->near[g->nnear++] = (centre){cp, cq, l < 0 ? g->nholes : 1};
+        }
+}
+
+/* The transfer the centres in g->near add at (p, q), DC = 1. */
+static double contamination(const geom *g, int p, int q)
+{
+    double c = 0;
+    for (int i = 0; i < g->nnear; i++)
+        c += g->near[i].wt * overlap_rel(dist_m(g, p, q, g->near[i].cp, g->near[i].cq, 1), g->d);
     return c / g->nholes;
 }
 
@@ -110,13 +132,14 @@ static int find_clean(geom *g, int k)
     if (!s->box || !s->c)
         return SL_ENOMEM;
     double tmin = MASKOBS_MIN_TRANSFER / g->nholes;
+    near_centres(g, k, g->d + hypot((rp + 2) * g->mx, (rq + 2) * g->my));
     for (int j = 0; j < s->bh; j++)
         for (int i = 0; i < s->bw; i++) {
             int p = s->p0 + i, q = s->q0 + j;
             mo_tap tap;
             double t = overlap_rel(dist_m(g, p, q, s->cp, s->cq, 0), g->d) / g->nholes;
             if (t < tmin || !maskobs_tap(g->w, g->h, p, q, &tap) ||
-                contamination(g, k, p, q) > g->clean_max * t)
+                contamination(g, p, q) > g->clean_max * t)
                 continue;
             s->box[(size_t)j * s->bw + i] = (float)t;
             s->c[s->nc++] = (cand){p, q, t};
@@ -228,6 +251,7 @@ static void free_geom(geom *g)
         free(g->sp[l].box);
     }
     free(g->sp);
+    free(g->near);
 }
 
 int maskobs_plan(maskobs *m, const double *x_m, const double *y_m,
@@ -237,15 +261,16 @@ int maskobs_plan(maskobs *m, const double *x_m, const double *y_m,
     double s_rad = m->o.plate_scale_arcsec * M_PI / (180.0 * 3600.0);
     geom g = {m->w, m->h, n, n * (n - 1) / 2, m->o.wavelength_m / (s_rad * m->w),
               m->o.wavelength_m / (s_rad * m->h), hole_diameter_m,
-              m->o.clean_max > 0 ? m->o.clean_max : MASKOBS_CLEAN_MAX, NULL};
+              m->o.clean_max > 0 ? m->o.clean_max : MASKOBS_CLEAN_MAX, NULL, NULL, 0};
     long ntri = (long)n * (n - 1) * (n - 2) / 6;
     g.sp = calloc((size_t)g.nb, sizeof *g.sp);
+    g.near = malloc((2 * (size_t)g.nb + 1) * sizeof *g.near);
     m->vis2 = malloc((size_t)g.nb * sizeof *m->vis2);
     m->vtap = malloc((size_t)g.nb * sizeof *m->vtap);
     m->t3 = malloc((size_t)ntri * sizeof *m->t3);
     m->t3_transfer = malloc((size_t)ntri * sizeof *m->t3_transfer);
     m->ttap = malloc((size_t)ntri * 3 * sizeof *m->ttap);
-    if (!g.sp || !m->vis2 || !m->vtap || !m->t3 || !m->t3_transfer || !m->ttap) {
+    if (!g.sp || !g.near || !m->vis2 || !m->vtap || !m->t3 || !m->t3_transfer || !m->ttap) {
         rc = sl_seterr(&m->err, SL_ENOMEM, "mask observables: out of memory "
                        "for %d holes", n);
         goto free_g;

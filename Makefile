@@ -17,6 +17,7 @@ CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
 DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3
+FIG_PKGS   := cairo fontconfig
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 ifeq ($(CI),true)
@@ -43,6 +44,8 @@ schema_cflags = $(shell $(PKG) --cflags $(SCHEMA_PKGS) 2>/dev/null)
 schema_libs   = $(shell $(PKG) --libs $(SCHEMA_PKGS) 2>/dev/null)
 daemon_cflags = $(shell $(PKG) --cflags $(DAEMON_PKGS) 2>/dev/null)
 daemon_libs   = $(shell $(PKG) --libs $(DAEMON_PKGS) 2>/dev/null)
+fig_cflags    = $(shell $(PKG) --cflags $(FIG_PKGS) 2>/dev/null)
+fig_libs      = $(shell $(PKG) --libs $(FIG_PKGS) 2>/dev/null)
 
 # recon/ in rooms (README, Layout): base, io, sim, spectra, tsm, pipeline,
 # measure -> librecon.a; bench (the benchmark and its charts) -> its own
@@ -53,6 +56,16 @@ RECON_LIB := $(BUILD)/librecon.a
 BENCH_SRC := $(wildcard recon/bench/*.c)
 BENCH_OBJ := $(BENCH_SRC:%.c=$(BUILD)/%.o)
 BENCH_LIB := $(BUILD)/libbench.a
+
+# figure/: figures for people drawn with cairo (reconstructions with scale
+# bar, compass and colour bar; the bench chart).  Uses recon's headers;
+# recon never uses it.  The CLI and specklabd link it.
+FIG_SRC   := $(wildcard figure/*.c)
+FIG_OBJ   := $(FIG_SRC:%.c=$(BUILD)/%.o)
+FIG_LIB   := $(BUILD)/libfigure.a
+# Its tests read the figures back; they run with the unit tests (quick).
+TFIG_SRC  := $(wildcard tests/figure/test_*.c)
+TFIG_BIN  := $(TFIG_SRC:tests/figure/%.c=$(BUILD)/tests/%)
 
 # drivers/: cameras (Aravis, libusb) and the stage (libmodbus).  Never
 # includes daemon/ and never links a mock.
@@ -82,7 +95,7 @@ MOCK_DIRS := $(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c))))
 MOCK_BIN  := $(MOCK_DIRS:%=$(BIN)/specklab-%)
 
 TEST_SRC  := $(wildcard tests/unit/test_*.c)
-TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%) $(TFIG_BIN)
 # Driver and integration tests: link drivers + recon, may start mocks.
 TDRV_SRC  := $(wildcard tests/drivers/test_*.c)
 TDRV_BIN  := $(TDRV_SRC:tests/drivers/%.c=$(BUILD)/tests/%)
@@ -107,7 +120,14 @@ $(BUILD)/recon/%.o: recon/%.c
 
 $(BUILD)/cli/%.o: cli/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema $(recon_cflags) $(cli_cflags) $(schema_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Ifigure $(recon_cflags) $(cli_cflags) $(schema_cflags) -c $< -o $@
+
+$(BUILD)/figure/%.o: figure/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure $(recon_cflags) $(fig_cflags) -c $< -o $@
+
+$(FIG_LIB): $(FIG_OBJ)
+	rm -f $@ && ar rcs $@ $^
 
 $(BUILD)/drivers/%.o: drivers/%.c
 	@mkdir -p $(dir $@)
@@ -153,12 +173,12 @@ $(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
-	    $(LDFLAGS_ALL) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(recon_libs) \
-	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) -lm
+	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(recon_libs) \
+	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) $(fig_libs) -lm
 
 # The soak program (make soak only): the integration fixture plus the
 # catalogue, cfitsio and json-glib; it talks to specklabd over the socket.
@@ -183,24 +203,29 @@ $(CLI_LIB): $(filter-out $(CLI_MAIN),$(CLI_OBJ))
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
-	    $(recon_libs) $(cli_libs) $(schema_libs)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
+	    $(recon_libs) $(cli_libs) $(schema_libs) $(fig_libs)
 
 $(BUILD)/daemon/%.o: daemon/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema $(recon_cflags) $(daemon_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Ifigure $(recon_cflags) $(daemon_cflags) -c $< -o $@
 
-$(BIN)/specklabd: $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+$(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
-	    $(recon_libs) $(daemon_libs) -lm
+	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	    $(recon_libs) $(daemon_libs) $(fig_libs) -lm
 
 $(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
+
+$(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/unit $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(recon_libs) $(fig_libs)
 
 $(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
@@ -282,6 +307,7 @@ FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g \
                -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 FUZZ_BIN   := $(patsubst tests/fuzz/%.c,$(FUZZ_BUILD)/%,$(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
+                  recon/io/cube_meta.c recon/io/cube_header.c recon/io/datasum.c \
                   recon/base/seq.c recon/base/status.c
 FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
@@ -293,7 +319,7 @@ FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/serv
                      daemon/config.c recon/pipeline/pipeline_skip_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
-$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/io/cube.h recon/io/cube_guard.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
+$(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/io/cube.h recon/io/cube_guard.h recon/io/cube_header.h recon/io/datasum.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $(shell $(PKG) --cflags cfitsio) $< $(FUZZ_FITS_SRC) -o $@ \
 	    $(shell $(PKG) --libs cfitsio) -lm
@@ -342,5 +368,5 @@ fuzz: deps
 clean:
 	rm -rf build build-asan build-fuzz bin
 
--include $(RECON_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+-include $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
          $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d)

@@ -8,6 +8,7 @@
 
 #include "bench_cli.h"
 #include "catalog.h"
+#include "chart.h"
 #include "pipeline/pipeline.h"
 #include "tsm/tsm.h"
 
@@ -376,22 +377,69 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
     return bad;
 }
 
-int bcli_write_png(const char *path, GArray *rows)
+/* A configuration as asked, the same on every data set ("tsm 18",
+ * "direct R2=16", "auto 0.1 [-crop]"), without the reference. */
+static void series_key(const bcli_row *r, char *buf, size_t n)
 {
-    static const bench_series series[] = {
-        {"DIRECT", PLOT_CIRCLE, 0, 0.0f}, {"DIRECT + REF", PLOT_CIRCLE, 1, 0.0f},
-        {"TSM", PLOT_TRIANGLE, 0, 0.45f}, {"TSM + REF", PLOT_TRIANGLE, 1, 0.45f},
-        {"TSM-FOURIER", PLOT_SQUARE, 0, 0.3f}, {"TSM-FOURIER + REF", PLOT_SQUARE, 1, 0.3f},
-        {"AUTO", PLOT_DIAMOND, 1, 0.0f}, {"AUTO + REF", PLOT_DIAMOND, 0, 0.0f}};
-    enum { MAXP = 12 };
-    char titles[MAXP][112];
-    const char *tp[MAXP];
-    int gid[MAXP], np = 0, n = (int)rows->len;
-    bench_point *pts = malloc(sizeof *pts * (size_t)(n + 1));
-    if (!pts)
-        return 1;
-    /* Panels: data sets with >= 3 measured points, in order, at most 12. */
-    for (int i = 0; i < n && np < MAXP; i++) {
+    char sk[64], par[32] = "";
+    skips_suffix(r, sk, sizeof sk);
+    if (r->method == PIPE_DIRECT && r->r2 > 0)
+        snprintf(par, sizeof par, " R2=%d", r->r2);
+    else if (r->method == PIPE_DIRECT)
+        snprintf(par, sizeof par, " R2=auto");
+    else if (r->method == PIPE_AUTO)
+        snprintf(par, sizeof par, " %g", r->target > 0 ? r->target : 0.1);
+    else /* pipeline.h: 0 projections means 180 */
+        snprintf(par, sizeof par, " %d%s", r->nangles > 0 ? r->nangles : 180,
+                 r->inverse == TSM_INV_ITER ? " iter" : "");
+    snprintf(buf, n, "%s%s%s", pipeline_method_name(r->method), par, sk);
+}
+
+typedef struct chart_set {
+    char key[CHART_MAX_SERIES][72], name[CHART_MAX_SERIES][80];
+    int method[CHART_MAX_SERIES];
+    chart_series s[CHART_MAX_SERIES];
+    int n;
+} chart_set;
+
+/* The row's series, added when new: colour by method, shape by the
+ * configuration within the method, filled with a reference; -1 when full. */
+static int series_of(chart_set *cs, const bcli_row *r)
+{
+    char key[72], name[80];
+    series_key(r, key, sizeof key);
+    snprintf(name, sizeof name, "%s%s", key, r->ref ? " +ref" : "");
+    int variant = -1, keys = 0; /* the twin's shape, else the next one */
+    for (int i = 0; i < cs->n; i++) {
+        if (!strcmp(cs->name[i], name))
+            return i;
+        if (cs->method[i] != r->method)
+            continue;
+        if (!strcmp(cs->key[i], key))
+            variant = cs->s[i].shape;
+        int first = 1;
+        for (int j = 0; j < i; j++)
+            first &= cs->method[j] != r->method || strcmp(cs->key[j], cs->key[i]) != 0;
+        keys += first;
+    }
+    variant = variant >= 0 ? variant : keys;
+    if (cs->n == CHART_MAX_SERIES)
+        return -1;
+    int i = cs->n++;
+    snprintf(cs->key[i], sizeof cs->key[i], "%s", key);
+    snprintf(cs->name[i], sizeof cs->name[i], "%s", name);
+    cs->method[i] = r->method;
+    /* past the shapes, the next palette colours keep the series apart */
+    cs->s[i] = (chart_series){cs->name[i], r->method + 4 * (variant / CHART_NSHAPES),
+                              variant, r->ref};
+    return i;
+}
+
+/* Panels: data sets with >= 3 measured points, in order, at most 12. */
+static int chart_panels(GArray *rows, char titles[][112], int *gid)
+{
+    int np = 0, n = (int)rows->len;
+    for (int i = 0; i < n && np < CHART_MAX_PANELS; i++) {
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
         int seen = 0, cnt = 0;
         for (int k = 0; k < np; k++)
@@ -403,30 +451,48 @@ int bcli_write_png(const char *path, GArray *rows)
             continue;
         char sc[48];
         scene_label(r, sc, sizeof sc);
-        snprintf(titles[np], sizeof titles[np], "%s %dX%d %dF %gPH", sc,
-                 r->width, r->height, r->frames, r->photons);
-        tp[np] = titles[np];
+        snprintf(titles[np], 112, "%s %dx%d, %d frames, %g photons", sc, r->width,
+                 r->height, r->frames, r->photons);
         gid[np++] = r->group;
     }
-    int m = 0;
+    return np;
+}
+
+int bcli_write_png(const char *path, GArray *rows)
+{
+    char titles[CHART_MAX_PANELS][112];
+    const char *tp[CHART_MAX_PANELS];
+    int gid[CHART_MAX_PANELS], n = (int)rows->len, m = 0;
+    int np = chart_panels(rows, titles, gid);
+    chart_set *cs = calloc(1, sizeof *cs);
+    chart_point *pts = malloc(sizeof *pts * (size_t)(n + 1));
+    if (!cs || !pts) {
+        free(cs);
+        free(pts);
+        return 1;
+    }
     for (int i = 0; i < n; i++) {
         const bcli_row *r = &g_array_index(rows, bcli_row, i);
-        for (int k = 0; k < np && ok(r); k++)
-            if (gid[k] == r->group) {
-                int s = r->method == PIPE_DIRECT ? 0 : r->method == PIPE_TSM ? 2
-                      : r->method == PIPE_AUTO ? 6 : 4;
-                pts[m++] = (bench_point){r->t.wall_s, err1(r), s + r->ref, k, r->front};
-            }
+        for (int k = 0; k < np && ok(r); k++) {
+            int s = gid[k] == r->group ? series_of(cs, r) : -1;
+            if (s >= 0)
+                pts[m++] = (chart_point){r->t.wall_s, err1(r), s, k, r->front};
+        }
     }
+    for (int k = 0; k < np; k++)
+        tp[k] = titles[k];
+    chart_data d = {pts, m, cs->s, cs->n, tp, np, "run time (s)", "error 1 \u2212 c",
+                    "Pareto front"};
     int rc = 0;
     sl_err e = {0};
     if (np == 0)
         fprintf(stderr, "bench: no data set has 3 measured points: no chart\n");
-    else if (bench_plot_png(path, pts, m, series, 8, tp, np, &e) != SL_OK)
+    else if (chart_write_png(path, &d, &e) != SL_OK)
         rc = fprintf(stderr, "specklab bench: %s\n", e.msg) > 0;
     else
-        fprintf(stderr, "bench: wrote %s (%d panels)\n", path, np);
+        fprintf(stderr, "bench: wrote %s (%d panels, %d series)\n", path, np, cs->n);
     free(pts);
+    free(cs);
     return rc;
 }
 

@@ -15,6 +15,7 @@ int cmd_devices(int argc, char **argv);
 int cmd_recon(int argc, char **argv);
 int cmd_compare(int argc, char **argv);
 int cmd_binary(int argc, char **argv);
+int cmd_oifits(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
 
 /* Parse "N" or "WxH" into width/height; FALSE with a message on error. */

@@ -195,6 +195,54 @@ long client_peer_pid(const client *c)
     return cr.pid > 0 ? (long)cr.pid : -1;
 }
 
+static gint64 *id_key(gint64 id);
+static char *take_line(client *c, size_t *len);
+static int parse_line(client *c, const char *line, size_t len, JsonObject **msg);
+static int classify(JsonObject *msg, gint64 *id);
+static int reply_result(client *c, gint64 id, JsonObject *reply, JsonObject **result);
+
+/* The daemon closed the connection before it read the request: it says
+ * why first (`busy`: every slot taken; `idle`: this connection sat idle),
+ * in a line with a null id that stays readable after the close.  Report
+ * that line rather than the broken pipe; keep anything else it sent. */
+static int closed_by_daemon(client *c, const char *cmd, int errnum)
+{
+    guint8 buf[READ_CHUNK];
+    ssize_t n;
+    while ((n = recv(c->fd, buf, sizeof buf, MSG_DONTWAIT)) > 0 ||
+           (n < 0 && errno == EINTR))
+        if (n > 0)
+            g_byte_array_append(c->in, buf, (guint)n);
+    size_t len = 0;
+    char *line;
+    while ((line = take_line(c, &len))) {
+        JsonObject *msg = NULL, *result = NULL;
+        gint64 id = 0;
+        int parsed = strspn(line, " \t\r") != len && parse_line(c, line, len, &msg) == SL_OK;
+        g_free(line);
+        if (!parsed)
+            continue;
+        switch (classify(msg, &id)) {
+        case -1:
+            g_queue_push_tail(&c->events, msg);
+            break;
+        case 0: {
+            int rc = reply_result(c, 0, msg, &result);
+            json_object_unref(msg);
+            if (result)
+                json_object_unref(result);
+            if (rc == CLIENT_EREMOTE)
+                return rc;
+            break;
+        }
+        default:
+            g_hash_table_replace(c->replies, id_key(id), msg);
+        }
+    }
+    return sl_seterr(&c->err, SL_EIO, "sending '%s' to specklabd at %s: %s", cmd, c->path,
+                     strerror(errnum));
+}
+
 static gint64 *id_key(gint64 id)
 {
     gint64 *k = g_new(gint64, 1);
@@ -238,6 +286,10 @@ int client_send(client *c, const char *cmd, JsonObject *args, gint64 *id)
         }
         if (errno == EINTR)
             continue;
+        if (errno == EPIPE || errno == ECONNRESET) {
+            rc = closed_by_daemon(c, cmd, errno);
+            goto free_text;
+        }
         if (errno != EAGAIN && errno != EWOULDBLOCK) {
             rc = sl_seterr(&c->err, SL_EIO, "sending '%s' to specklabd at %s: %s",
                            cmd, c->path, strerror(errno));

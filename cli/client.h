@@ -18,8 +18,11 @@
  *   CLIENT_EREMOTE       the daemon answered {"ok": false}: the message is
  *                        the daemon's, client_errcode gives its code
  *                        ("not-found", "bad-request"...).
- * A connection closed by the daemon is SL_EIO; a line that is not a JSON
- * object, or longer than CLIENT_LINE_MAX, is SL_EFORMAT.
+ * A connection closed by the daemon is SL_EIO, unless the daemon said why
+ * before closing (`busy`: all its slots taken; `idle`: this connection
+ * sat idle): that is CLIENT_EREMOTE with its code and message, also when
+ * the close came before the request could be sent.  A line that is not a
+ * JSON object, or longer than CLIENT_LINE_MAX, is SL_EFORMAT.
  *
  * Ownership: JsonObjects handed out carry a reference for the caller
  * (json_object_unref); args passed in are borrowed.  Timeouts are in ms,

@@ -301,6 +301,7 @@ static int write_table(const char *path, const frame_row *rows, long n,
     fits_update_key_lng(f, "NMISSPKT", (LONGLONG)st->missing_packets, "GigE packets missing", &s);
     fits_update_key_lng(f, "NUNDERRN", (LONGLONG)st->underruns, "frames dropped: no buffer", &s);
     fits_update_key_lng(f, "NIDGAPS", (LONGLONG)st->id_gaps, "frame ids never delivered", &s);
+    fits_write_chksum(f, &s);   /* last: after every row and keyword */
     if (f) {
         int s2 = 0;
         fits_close_file(f, s ? &s2 : &s);
@@ -426,6 +427,8 @@ static int grab(const grab_args *a, const char *prog)
     }
     cube_meta md;
     fill_meta(&md, &in, &cf);
+    cube_meta_add_history(&md, "specklab camera grab: %d frames asked of camera %s (%s)",
+                          a->frames, a->camera, a->backend ? a->backend : "aravis");
     int bitpix = cf.pixel_format == CAMERA_PIX_MONO8 ? 8 : CUBE_BITPIX_U16;
     size_t npx = (size_t)cf.width * (size_t)cf.height;
     if (!(pix = malloc(npx * sizeof *pix))) {

@@ -15,10 +15,12 @@
 #include "io/preview.h"
 #include "outfile.h"
 #include "progress.h"
+#include "skyfig.h"
 #include "tsm/tsm.h"
+#include "wds.h"
 
 typedef struct recon_args {
-    char *method, *out, *png, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
+    char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
     char *dark, *flat;
     int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary, overwrite;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
@@ -223,9 +225,9 @@ static void recon_progress(void *ctx, double done, double total, const char *wha
 }
 
 /* The image and the PNG may be written (outfile.h): neither is one of the
- * inputs, the reference, the target or the bad-pixel map. */
+ * inputs, the reference, the target or a calibration file. */
 static int outputs_begin(const recon_args *a, char **inputs, int ninputs,
-                         outfile *fo, outfile *fp)
+                         outfile out[3])
 {
     GPtrArray *in = g_ptr_array_new();
     for (int i = 0; i < ninputs; i++)
@@ -237,29 +239,57 @@ static int outputs_begin(const recon_args *a, char **inputs, int ninputs,
     g_ptr_array_add(in, a->flat);
     GError *gerr = NULL;
     const char *const *v = (const char *const *)in->pdata;
-    int ok = outfile_begin(fo, a->out, a->overwrite, v, (int)in->len, &gerr) &&
-             (!a->png || outfile_begin(fp, a->png, a->overwrite, v, (int)in->len, &gerr));
+    const char *path[3] = {a->out, a->png, a->png_raw};
+    int ok = 1;
+    for (int i = 0; ok && i < 3; i++)
+        ok = !path[i] || outfile_begin(&out[i], path[i], a->overwrite, v, (int)in->len, &gerr);
     if (!ok) {
         fprintf(stderr, "specklab recon: %s\n", gerr->message);
         g_error_free(gerr);
-        outfile_clear(fo);
+        for (int i = 0; i < 3; i++)
+            outfile_clear(&out[i]);
     }
     g_ptr_array_free(in, TRUE);
     return ok;
 }
 
+/* --stretch and --cut into the figure's options; 0 after a usage error. */
+static int display_from_args(const recon_args *a, skyfig_opts *f)
+{
+    skyfig_opts_init(f);
+    if (a->stretch && preview_stretch_parse(a->stretch, &f->stretch) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
+        return 0;
+    }
+    if (a->cut && display_cut_parse(a->cut, &f->cut) != SL_OK) {
+        fprintf(stderr, "specklab recon: unknown --cut '%s' (artifacts, full)\n", a->cut);
+        return 0;
+    }
+    return 1;
+}
+
+/* The figure (--png) and the pixel-exact quick-look (--png-raw), to
+ * their temporaries. */
+static int write_pngs(const recon_args *a, const outfile out[3], skyfig_opts *f,
+                      const pipeline_result *r, const char *input, sl_err *e)
+{
+    int rc = a->png_raw ? preview_write_png(out[2].tmp, r->image, r->width, r->height,
+                                            f->stretch, e) : SL_OK;
+    if (rc != SL_OK || !a->png)
+        return rc;
+    const char *base = strrchr(input, '/');
+    skyfig_opts_from_result(f, r, r->meta.object[0] ? NULL : base ? base + 1 : input);
+    return skyfig_write_png(out[1].tmp, r->image, r->width, r->height, f, e);
+}
+
 static int recon_run(recon_args *a, char **inputs, int ninputs)
 {
     pipeline_opts o;
-    if (!opts_from_args(a, &o))
+    skyfig_opts fig;
+    if (!opts_from_args(a, &o) || !display_from_args(a, &fig))
         return 2;
-    preview_stretch stretch = PREVIEW_SQRT;
-    if (a->stretch && preview_stretch_parse(a->stretch, &stretch) != SL_OK) {
-        fprintf(stderr, "specklab recon: unknown --stretch '%s' (linear, sqrt, asinh)\n", a->stretch);
-        return 2;
-    }
-    outfile fo = {0}, fp = {0};
-    if (!outputs_begin(a, inputs, ninputs, &fo, &fp))
+    outfile out[3] = {{0}};
+    if (!outputs_begin(a, inputs, ninputs, out))
         return 2;
     pipeline_result r;
     sl_err e = {0};
@@ -282,11 +312,11 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
                 "statistics (header SIMPHOT or --photons); the phases are raw\n");
     seq img = {r.width, r.height, 1, r.image};
     GError *gerr = NULL;
-    if (cube_write(fo.tmp, &img, &r.meta, &e) != SL_OK ||
-        (a->png && preview_write_png(fp.tmp, r.image, r.width, r.height,
-                                     stretch, &e) != SL_OK)) {
+    if (cube_write(out[0].tmp, &img, &r.meta, &e) != SL_OK ||
+        write_pngs(a, out, &fig, &r, inputs[0], &e) != SL_OK) {
         fprintf(stderr, "specklab recon: %s\n", e.msg);
-    } else if (!outfile_commit(&fo, &gerr) || (a->png && !outfile_commit(&fp, &gerr))) {
+    } else if (!outfile_commit(&out[0], &gerr) || (a->png && !outfile_commit(&out[1], &gerr)) ||
+               (a->png_raw && !outfile_commit(&out[2], &gerr))) {
         fprintf(stderr, "specklab recon: %s\n", gerr->message);
         g_error_free(gerr);
     } else {
@@ -295,8 +325,8 @@ static int recon_run(recon_args *a, char **inputs, int ninputs)
     }
     pipeline_result_clear(&r);
 clear_outputs:
-    outfile_clear(&fo);
-    outfile_clear(&fp);
+    for (int i = 0; i < 3; i++)
+        outfile_clear(&out[i]);
     return status;
 }
 
@@ -338,8 +368,10 @@ int cmd_recon(int argc, char **argv)
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default -1: up to 40 when the phase recursion's closure misfit says it went astray; 0: none)", "N"},
         {"binary", 0, 0, G_OPTION_ARG_NONE, &a.binary, "also measure a binary (closure phases, image, power-spectrum fringes) and say whether the data support it: measured, ambiguous, unresolved or inconsistent (header MEAS*, CP*, FR*)", NULL},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &a.out, "output FITS image (required)", "FILE"},
-        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a PNG preview", "FILE"},
-        {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default sqrt)", "S"},
+        {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "also write a figure: the image enlarged, north up, with title, scale bar, compass and colour bar", "FILE"},
+        {"stretch", 0, 0, G_OPTION_ARG_STRING, &a.stretch, "PNG stretch linear|sqrt|asinh (default asinh)", "S"},
+        {"cut", 0, 0, G_OPTION_ARG_STRING, &a.cut, "figure's low cut: artifacts (above 9 in 10 of the image's local maxima; default) or full (minimum to maximum)", "C"},
+        {"png-raw", 0, 0, G_OPTION_ARG_FILENAME, &a.png_raw, "also write a plain grey PNG, one pixel per image pixel (minimum to maximum, --stretch)", "FILE"},
         {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace existing output files (never an input)", NULL},
         {"json", 0, 0, G_OPTION_ARG_NONE, &a.json, "print one JSON object", NULL},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &a.quiet, "print nothing on success", NULL},
@@ -371,7 +403,7 @@ int cmd_recon(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
-    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
+    g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.cut); g_free(a.png_raw); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
     g_free(a.dark); g_free(a.flat);
     return status;
 }
@@ -520,12 +552,13 @@ static int binary_of_cube(const char *path, int json)
 int cmd_binary(int argc, char **argv)
 {
     char *ext = NULL;
-    int json = 0, status = 2;
+    int json = 0, status = 2, wds = 0;
     seq *img = NULL;
     cube_meta m;
     GOptionEntry entries[] = {
         {"ext", 0, 0, G_OPTION_ARG_STRING, &ext, "read the image from this extension", "EXT"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print JSON", NULL},
+        {"wds", 0, 0, G_OPTION_ARG_NONE, &wds, "print one WDS-style measure: Besselian epoch, theta, rho [arcsec], dm with errors (cli/wds.h)", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("IMAGE.fits|CUBE.fits - separation, position angle and dm of a binary");
     g_option_context_add_main_entries(ctx, entries, NULL);
@@ -541,6 +574,10 @@ int cmd_binary(int argc, char **argv)
         goto free_ctx;
     }
     status = 1;
+    if (wds) {
+        status = wds_binary(argv[1], ext, json);
+        goto free_ctx;
+    }
     sl_err e = {0};
     const char *paths[] = {argv[1]};
     if (!ext) {

@@ -9,7 +9,9 @@
  * 8- or 16-bit converter, else float32.
  *
  * --blind writes the cube as a camera would: only DATE-OBS, EXPTIME,
- * INSTRUME and (when given) OBJECT, no extensions.  Everything the
+ * INSTRUME, BUNIT and (when given) OBJECT, besides the standard header
+ * (io/cube.h; no WCS: a camera does not know its plate scale), and a
+ * HISTORY naming the sidecar; no extensions.  Everything the
  * simulator knows goes to a sidecar: its primary HDU is the truth (so a
  * reader opening it sees the keywords), then the TRUTH and COPHASED
  * extensions as in the normal output.
@@ -23,12 +25,12 @@
 #include "cli.h"
 #include "io/cube.h"
 #include "sim/mask.h"
-#include "io/preview.h"
 #include "outfile.h"
 #include "progress.h"
 #include "sim/scene.h"
 #include "sim/sim.h"
 #include "sim/sim_file.h"
+#include "skyfig.h"
 
 /* INSTRUME of a --blind cube: a camera, not the simulator. */
 #define BLIND_INSTRUME "CMOS camera"
@@ -137,7 +139,13 @@ static void fill_meta(cube_meta *md, const sim_args *a, const sim *s,
              o->photons_per_frame > 0 ? "adu" : "relative flux");
     md->exptime_s = o->exposure_s;
     md->plate_scale_arcsec = sim_plate_scale_arcsec(s);
+    if (o->pixel_aspect != 1.0)
+        md->pixel_aspect = o->pixel_aspect;
     md->wavelength_m = o->wavelength_m;
+    cube_meta_add_history(md, "simulated by specklab sim: scene %s, mask %s, %d frames, "
+                          "seed %lld; every parameter is in the SIM*, MASK* and BIN* "
+                          "keywords", a->scene ? a->scene : "binary",
+                          a->mask ? a->mask : "nrm17", o->nframes, (long long)o->seed);
     cube_meta_set_str(md, "SIMSCENE", scene_name(sc), "scene");
     cube_meta_set_str(md, "SIMMASK", a->mask ? a->mask : mask_name(m), "pupil mask");
     cube_meta_set_num(md, "MASKNH", mask_nholes(m), "mask holes (0 = filled)");
@@ -183,7 +191,11 @@ static void camera_meta(cube_meta *md, const sim_args *a, const sim *s)
     snprintf(md->instrume, sizeof md->instrume, "%s", BLIND_INSTRUME);
     if (a->object)
         snprintf(md->object, sizeof md->object, "%s", a->object);
+    snprintf(md->bunit, sizeof md->bunit, "%s",
+             sim_options(s)->photons_per_frame > 0 ? "adu" : "relative flux");
     md->exptime_s = sim_options(s)->exposure_s;
+    cube_meta_add_history(md, "simulated camera frames (specklab sim --blind); the truth "
+                          "and the parameters are in %s", a->truth_path);
 }
 
 /* Add the truth extensions (with_truth) and close. */
@@ -223,15 +235,25 @@ static int write_cube(sim *s, const char *path, const cube_meta *md, float *buf,
 
 static const char *const png_what[] = {"frame0", "truth", "cophased"};
 
-static int write_pngs(sim *s, outfile *png, float *buf, sl_err *e)
+/* Figures of frame 0 (the whole frame, minimum to maximum: speckles are
+ * the subject), the truth and the cophased image (zoomed, cut above the
+ * artifacts: the scene is the subject), to their temporaries. */
+static int write_pngs(sim *s, outfile *png, const char *object, float *buf,
+                      sl_err *e)
 {
     const sim_opts *o = sim_options(s);
+    static const char *title[] = {"frame 0", "truth", "cophased"};
     for (int i = 0; i < 3; i++) {
         int rc = i == 0 ? sim_frame(s, 0, buf) : i == 1 ? sim_truth(s, buf)
                                                          : sim_cophased(s, buf);
+        skyfig_opts f;
+        skyfig_opts_init(&f);
+        snprintf(f.title, sizeof f.title, "%s \u00b7 simulated %s", object, title[i]);
+        f.plate_scale_arcsec = sim_plate_scale_arcsec(s);
+        f.stretch = i == 0 ? PREVIEW_SQRT : PREVIEW_ASINH;
+        f.cut = i == 0 ? DISPLAY_CUT_FULL : DISPLAY_CUT_ARTIFACTS;
         if (rc == SL_OK)
-            rc = preview_write_png(png[i].tmp, buf, o->width, o->height,
-                                   PREVIEW_SQRT, e);
+            rc = skyfig_write_png(png[i].tmp, buf, o->width, o->height, &f, e);
         if (rc != SL_OK)
             return rc;
     }
@@ -409,7 +431,8 @@ static int write_outputs(const sim_args *a, sim_outputs *f, sim *s,
         if (sim_file_write_sidecar(s, f->truth.tmp, &md, buf, e) != SL_OK)
             return 0;
     }
-    if (a->png && write_pngs(s, f->png, buf, e) != SL_OK)
+    if (a->png && write_pngs(s, f->png, a->object ? a->object : scene_name(sc), buf,
+                             e) != SL_OK)
         return 0;
     return outputs_commit(a, f, e);
 }

@@ -24,6 +24,7 @@ static const command commands[] = {
     {"recon", cmd_recon, "reconstruct a FITS sequence (direct bispectrum or TSM)"},
     {"compare", cmd_compare, "correlation coefficient c of two images"},
     {"binary", cmd_binary, "separation, position angle and dm of a binary image"},
+    {"oifits", cmd_oifits, "an aperture-mask cube's V2 and closure phases as OIFITS 2"},
     {"bench", cmd_bench, "run time against error of every method on simulated cubes (table, CSV, PNG, catalogue)"},
     {"mask", cmd_mask, "generate or show an aperture mask"},
     {"devices", cmd_devices, "cameras and stages found, with diagnosis (USB speed, permissions)"},
@@ -37,7 +38,7 @@ static const command commands[] = {
 static int run_with_wisdom(const command *c, int argc, char **argv)
 {
     int plans = !strcmp(c->name, "sim") || !strcmp(c->name, "recon") ||
-                !strcmp(c->name, "bench");
+                !strcmp(c->name, "bench") || !strcmp(c->name, "oifits");
     const char *path = plans ? wisdom_default_path() : NULL;
     sl_err e = {0};
     if (path && wisdom_load(path, NULL, &e) != SL_OK)

@@ -19,6 +19,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/version.h"
 #include "io/cube.h"
 #include "cubefile.h"
 #include "framelog.h"
@@ -27,7 +28,11 @@
 #define POP_SLICE_MS 200        /* abort and loss are checked this often */
 #define FLUSH_US 100000         /* cube flush + progress event period */
 #define CATALOG_US 1000000      /* catalogue progress period */
-#define OPEN_RETRY_US 8000000  /* keep trying to get the camera this long */
+/* Keep trying to get the camera this long past its heartbeat timeout. */
+#define OPEN_RETRY_EXTRA_US 5000000
+/* Control lost mid-run is tried back this many times, each bounded. */
+#define MAX_RECONNECTS 3
+#define RECONNECT_MS 3000
 #define RETRY_PAUSE_US 500000
 
 /* The catalogue's progress row during acquisition, written by a helper
@@ -148,6 +153,7 @@ typedef struct acq {
     int64_t packets_missing;
     camera_stats base;         /* the handle's counters at the run's start */
     gint64 t_flush;
+    int reconnects;            /* camera control taken back this run */
     progress_writer pw;        /* the catalogue's progress row */
     framelog *fl;              /* the rows on disk (framelog.h), NULL once closed */
     char *fl_path;
@@ -190,25 +196,29 @@ static int configure(camera *c, const config *cfg, const runner_spec *sp, camera
     if (rc == SL_OK)
         rc = camera_set_trigger(c, CAMERA_TRIGGER_FREE_RUN);
     if (rc == SL_OK)
+        rc = camera_set_heartbeat_ms(c, cfg->heartbeat_timeout_ms);
+    if (rc == SL_OK)
         rc = camera_config_get(c, cf);
     return rc;
 }
 
 /* Open the camera if needed and configure it.  A handle that fails (the
  * camera was restarted or lost since the last run) is replaced by a
- * fresh open, retried for up to OPEN_RETRY_US:
+ * fresh open, retried for up to [camera] heartbeat_timeout_ms +
+ * OPEN_RETRY_EXTRA_US:
  *  - a controller that died without letting go (the previous daemon,
  *    SIGKILLed) keeps the camera's control privilege until its heartbeat
- *    times out (~3 s), and streaming is refused until then;
+ *    times out, and streaming is refused until then;
  *  - a camera whose previous controller died mid-acquisition may still be
  *    "acquiring" towards that controller's port: a fresh handle is primed
  *    with one start/stop (AcquisitionStop) so the real start streams to
  *    this daemon (observed with Aravis's fake GigE camera).
  * An absent camera costs ~2.5 s per attempt, so a run fails after at
- * most ~OPEN_RETRY_US + 2.5 s. */
+ * most that bound + 2.5 s. */
 static int camera_ready(runner *r, acq *a, sl_err *e)
 {
-    gint64 end = g_get_monotonic_time() + OPEN_RETRY_US;
+    gint64 end = g_get_monotonic_time() + r->cfg->heartbeat_timeout_ms * 1000LL +
+                 OPEN_RETRY_EXTRA_US;
     for (int attempt = 0;; attempt++) {
         int fresh = !r->cam || r->cam_fresh, rc = SL_OK;
         if (attempt > 0)
@@ -248,6 +258,10 @@ static void fill_meta(acq *a, cube_meta *m)
     m->exptime_s = a->cf.exposure_us * 1e-6;
     m->plate_scale_arcsec = cfg->plate_scale_arcsec;
     m->wavelength_m = cfg->wavelength_m;
+    snprintf(m->creator, sizeof m->creator, "specklabd %s", SPECKLAB_VERSION);
+    cube_meta_add_history(m, "specklabd run %s: %d frames asked through screen %s (slot %d) "
+                          "and mask %s (slot %d)", sp->uuid, sp->frames, sp->screen,
+                          sp->screen_slot, sp->mask, sp->mask_slot);
     cube_meta_set_str(m, "RUNUUID", sp->uuid, "specklab run");
     cube_meta_set_str(m, "SCREEN", sp->screen, "phase screen in the beam");
     cube_meta_set_num(m, "SCRSLOT", sp->screen_slot, "screen wheel slot");
@@ -306,6 +320,26 @@ static int flush_progress(acq *a, sl_err *e)
     return SL_OK;
 }
 
+/* Control of the camera was lost mid-run: its heartbeat went unanswered
+ * in time (the camera or this host too busy, a link blip), which does not
+ * mean the camera is gone.  Take it again, bounded, and go on with the
+ * run; frames it sent meanwhile are id gaps.  SL_OK when it is back. */
+static int take_camera_back(acq *a)
+{
+    runner *r = a->r;
+    gint64 t0 = g_get_monotonic_time();
+    a->reconnects++;
+    g_message("run %s: %s after %d frames; taking the camera back (%d of %d)", a->sp->uuid,
+              camera_errmsg(r->cam), a->stored, a->reconnects, MAX_RECONNECTS);
+    int rc = camera_reconnect(r->cam, RECONNECT_MS);
+    if (rc == SL_OK)
+        g_message("run %s: camera back after %.1f s", a->sp->uuid,
+                  (g_get_monotonic_time() - t0) * 1e-6);
+    else
+        g_message("run %s: camera not back: %s", a->sp->uuid, camera_errmsg(r->cam));
+    return rc;
+}
+
 /* The frame loop.  Returns how it ended, with the reason. */
 static acq_end stream(acq *a, char *reason, size_t rlen)
 {
@@ -331,6 +365,10 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
         gint64 now = g_get_monotonic_time();
         if (rc == CAMERA_ETIMEOUT && now - t_frame <= r->cfg->lost_timeout_s * 1e6)
             continue;
+        if (rc == CAMERA_ELOST && a->reconnects < MAX_RECONNECTS && take_camera_back(a) == SL_OK) {
+            t_frame = g_get_monotonic_time();
+            continue;
+        }
         if (rc == CAMERA_ETIMEOUT || rc == CAMERA_ELOST) {
             snprintf(reason, rlen, "camera lost after %d of %d frames: %s", a->stored,
                      sp->frames, rc == CAMERA_ELOST ? camera_errmsg(r->cam) : "no frame for");

@@ -31,6 +31,8 @@ static const char defaults_text[] =
     "plate_scale_arcsec=0.05934801016109636\n"
     "wavelength_nm=633\n"
     "lost_timeout_s=10\n"
+    "# the camera keeps this daemon in control this long without a heartbeat\n"
+    "heartbeat_timeout_ms=6000\n"
     "max_failed_frames=0\n"
     "# gain_e_per_adu=1       (at Gain 0 dB; unset: unknown, photon bias from the floor)\n"
     "# read_noise_e=2         (unset: unknown)\n"
@@ -67,6 +69,8 @@ static const char defaults_text[] =
     "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
     "fftw=measure\n"
     "max_clients=64\n"
+    "# a connection with no request in hand for this long is closed\n"
+    "client_idle_timeout_ms=30000\n"
     "# how long a catalogue write waits for another process's lock\n"
     "catalog_busy_timeout_ms=5000\n";
 
@@ -79,13 +83,13 @@ static const char *const known_keys[][16] = {
     {"camera", "backend", "address", "exposure_us", "pixel_format",
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
      "lost_timeout_s", "max_failed_frames", "gain_e_per_adu", "read_noise_e",
-     NULL},
+     "heartbeat_timeout_ms", NULL},
     {"stage", "backend", "address", "unit", "device", "baud",
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
     {"paths", "data_dir", "catalog", NULL},
     {"daemon", "socket", "reconstruct", "projections", "tsm_phases", "skips", "fftw", "max_clients",
-     "catalog_busy_timeout_ms", NULL},
+     "client_idle_timeout_ms", "catalog_busy_timeout_ms", NULL},
 };
 
 int config_method_valid(const char *name)
@@ -365,6 +369,8 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
                       &c->plate_scale_arcsec, err)) ||
         (rc = get_num(kf, "camera", "wavelength_nm", 633, 100, 30000, &c->wavelength_m, err)) ||
         (rc = get_num(kf, "camera", "lost_timeout_s", 10, 0.5, 3600, &c->lost_timeout_s, err)) ||
+        (rc = get_int(kf, "camera", "heartbeat_timeout_ms", 6000, 500, 600000,
+                      &c->heartbeat_timeout_ms, err)) ||
         (rc = get_int(kf, "camera", "max_failed_frames", 0, 0, INT_MAX, &c->max_failed_frames,
                       err)) ||
         (rc = get_num(kf, "camera", "gain_e_per_adu", NAN, 1e-4, 1e4, &c->gain_e_per_adu, err)) ||
@@ -419,6 +425,8 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
         return rc;
     if ((rc = get_int(kf, "daemon", "projections", 0, 0, 4096, &c->projections, err)) ||
         (rc = get_int(kf, "daemon", "max_clients", 64, 1, 4096, &c->max_clients, err)) ||
+        (rc = get_int(kf, "daemon", "client_idle_timeout_ms", 30000, 100, 86400000,
+                      &c->client_idle_timeout_ms, err)) ||
         (rc = get_int(kf, "daemon", "catalog_busy_timeout_ms", 5000, 10, 600000,
                       &c->catalog_busy_timeout_ms, err)))
         return rc;

@@ -7,13 +7,14 @@
  *   [camera]  backend address exposure_us pixel_format frame_rate_hz roi
  *             buffers plate_scale_arcsec wavelength_nm lost_timeout_s
  *             max_failed_frames gain_e_per_adu read_noise_e
+ *             heartbeat_timeout_ms
  *   [stage]   backend address unit device baud move_timeout_ms settle_ms
  *             response_timeout_ms call_timeout_ms
  *   [screens] SLOT=NAME ...        (the phase-screen wheel)
  *   [masks]   SLOT=NAME[:FILE] ... (built-in "full"/"nrm17", or a mask file)
  *   [paths]   data_dir catalog
  *   [daemon]  socket reconstruct projections tsm_phases skips fftw max_clients
- *             catalog_busy_timeout_ms
+ *             client_idle_timeout_ms catalog_busy_timeout_ms
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
  * typo must not silently fall back to a default).  Relative paths are
@@ -43,6 +44,7 @@ typedef struct config {
     double plate_scale_arcsec;  /* PLTSCALE of acquired cubes */
     double wavelength_m;        /* WAVELEN */
     double lost_timeout_s;      /* no frame for this long: camera lost */
+    int heartbeat_timeout_ms;   /* GevHeartbeatTimeout set on the camera */
     int max_failed_frames;      /* damaged frames before a run fails;
                                  * <= 0: max(100, frames requested) */
     /* The detector's photon statistics, written as GAIN [e-/ADU, scaled
@@ -69,6 +71,8 @@ typedef struct config {
                                  * (effective when cubes carry GAIN) */
     int fftw_measure;           /* 1: FFTW_MEASURE with DATA_DIR/fftw-wisdom */
     int max_clients;
+    int client_idle_timeout_ms; /* a connection with nothing in hand this
+                                 * long is closed (server.h) */
     int catalog_busy_timeout_ms; /* a write waits this long for another
                                   * process's lock, then fails "locked" */
 } config;

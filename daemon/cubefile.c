@@ -87,6 +87,35 @@ static off_t padded(off_t bytes)
     return (bytes + BLOCK - 1) / BLOCK * BLOCK;
 }
 
+/* Make the primary HDU's CHECKSUM and DATASUM right again when the cube
+ * has them and they fail (a crash between the writer's flushes, or the
+ * repair above).  The cards are rewritten in place: the file never grows. */
+static int fix_checksum(const char *path, sl_err *err)
+{
+    fitsfile *f = NULL;
+    int s = 0, data_ok = 0, hdu_ok = 0;
+    char card[FLEN_CARD];
+    fits_open_diskfile(&f, path, READWRITE, &s);
+    if (!s && fits_read_card(f, "CHECKSUM", card, &s) == KEY_NO_EXIST) {
+        s = 0;   /* a cube from before checksums: nothing to keep right */
+        data_ok = hdu_ok = 1;
+    }
+    if (!s && !(data_ok && hdu_ok))
+        fits_verify_chksum(f, &data_ok, &hdu_ok, &s);
+    if (!s && (data_ok != 1 || hdu_ok != 1))
+        fits_write_chksum(f, &s);
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, s ? &s2 : &s);
+    }
+    if (!s)
+        return SL_OK;
+    char text[FLEN_STATUS];
+    fits_get_errstatus(s, text);
+    fits_clear_errmsg();
+    return sl_seterr(err, SL_EIO, "%s: making its CHECKSUM right: %s", path, text);
+}
+
 int cubefile_salvage(const char *path, int *nframes, sl_err *err)
 {
     header h;
@@ -110,7 +139,7 @@ int cubefile_salvage(const char *path, int *nframes, sl_err *err)
         k--;
     *nframes = (int)k;
     if (k == h.n3 && h.datastart + padded((off_t)k * fb) <= st.st_size)
-        goto close_fd;   /* already a valid cube (maybe with extensions) */
+        goto check_sum;   /* already a valid cube (maybe with extensions) */
     char val[21];
     snprintf(val, sizeof val, "%20ld", k);
     off_t data_end = h.datastart + (off_t)k * fb, end = h.datastart + padded((off_t)k * fb);
@@ -121,6 +150,9 @@ int cubefile_salvage(const char *path, int *nframes, sl_err *err)
         ftruncate(fd, end) != 0 || fsync(fd) != 0)
         rc = sl_seterr(err, SL_EIO, "%s: repairing the cube to %ld frames: %s", path, k,
                        g_strerror(errno));
+check_sum:
+    close(fd);
+    return rc == SL_OK ? fix_checksum(path, err) : rc;
 close_fd:
     close(fd);
     return rc;
@@ -166,6 +198,7 @@ int cubefile_frames_table(const char *path, const cubefile_row *rows, long n,
                             &s);
         fits_update_key_lng(f, "NIDGAPS", (LONGLONG)st->id_gaps, "frame ids never delivered", &s);
     }
+    fits_write_chksum(f, &s);   /* last: after every row and keyword */
     /* cfitsio does not always report a write its close could not finish
      * (seen on a full tmpfs: the table's last bytes were dropped and the
      * close returned 0), so the file's size is checked against the end

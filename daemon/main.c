@@ -316,7 +316,8 @@ int main(int argc, char **argv)
      * the calling thread when nobody owns the context. */
     g_main_context_acquire(g_main_context_default());
     if (prepare_dirs(&cfg, &lock_fd, &e) != SL_OK ||
-        server_new(&d.srv, cfg.socket, cfg.max_clients, dispatch_request, &d, &e) != SL_OK ||
+        server_new(&d.srv, cfg.socket, cfg.max_clients, cfg.client_idle_timeout_ms,
+                   dispatch_request, &d, &e) != SL_OK ||
         (rs = reserve_new(cfg.catalog), start_catalog(&cfg, &cat_opts, &d.cat, rs, &e)) != SL_OK ||
         worker_new(&d.wk, &cfg, d.srv, rs, &e) != SL_OK ||
         runner_new(&d.run, &cfg, d.srv, d.wk, rs, &e) != SL_OK) {

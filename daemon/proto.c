@@ -51,6 +51,94 @@ char *proto_take_string(JsonNode *n)
     return s;
 }
 
+/* JSON's number: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?; *is_int
+ * when it has neither fraction nor exponent. */
+static int json_number(const char *t, size_t n, int *is_int)
+{
+    size_t i = t[0] == '-';
+    size_t d = i;
+    while (i < n && g_ascii_isdigit(t[i]))
+        i++;
+    if (i == d || (t[d] == '0' && i - d > 1))
+        return 0;
+    *is_int = i == n;
+    if (i < n && t[i] == '.') {
+        size_t f = ++i;
+        while (i < n && g_ascii_isdigit(t[i]))
+            i++;
+        if (i == f)
+            return 0;
+    }
+    if (i < n && (t[i] == 'e' || t[i] == 'E')) {
+        i += i + 1 < n && (t[i + 1] == '+' || t[i + 1] == '-') ? 2 : 1;
+        size_t e = i;
+        while (i < n && g_ascii_isdigit(t[i]))
+            i++;
+        if (i == e)
+            return 0;
+    }
+    return i == n;
+}
+
+#define KEY_DEPTH 16   /* members deeper than this are not named */
+
+/* One pass over the line.  json-glib has parsed it, so outside strings a
+ * number is a run of [0-9A-Za-z+-.] starting with a digit, '-' or '.',
+ * and a string right after '{' or ',' of an object is a member's name. */
+int proto_numbers_ok(const char *text, size_t len, proto_badnum *bad)
+{
+    char keys[KEY_DEPTH][sizeof bad->key];
+    int is_obj[KEY_DEPTH + 1] = {0}, depth = 0, want_key = 0;
+    memset(bad, 0, sizeof *bad);
+    for (size_t i = 0; i < len;) {
+        char ch = text[i];
+        if (ch == '"') {
+            size_t start = ++i;
+            while (i < len && text[i] != '"')
+                i += text[i] == '\\' ? 2 : 1;
+            if (want_key && depth <= KEY_DEPTH)
+                snprintf(keys[depth - 1], sizeof keys[0], "%.*s", (int)(MIN(i, len) - start),
+                         text + start);
+            want_key = 0;
+            i++;
+        } else if (ch == '-' || ch == '.' || g_ascii_isdigit(ch)) {
+            size_t start = i;
+            int is_int = 0;
+            while (i < len && (g_ascii_isalnum(text[i]) || (text[i] && strchr("+-.", text[i]))))
+                i++;
+            int ok = json_number(text + start, i - start, &is_int);
+            char tok[64];
+            snprintf(tok, sizeof tok, "%.*s", (int)MIN(i - start, sizeof tok - 1), text + start);
+            if (ok && is_int && (i - start >= sizeof tok ||
+                                 !g_ascii_string_to_signed(tok, 10, G_MININT64, G_MAXINT64,
+                                                           NULL, NULL)))
+                ok = 0;
+            if (ok)
+                continue;
+            g_strlcpy(bad->literal, tok, sizeof bad->literal);
+            bad->not_json = !json_number(text + start, i - start, &is_int);
+            for (int d = MIN(depth, KEY_DEPTH); d >= 1 && !bad->key[0]; d--)
+                if (is_obj[d])
+                    snprintf(bad->key, sizeof bad->key, "%s", keys[d - 1]);
+            bad->top_id = depth == 1 && !strcmp(bad->key, "id");
+            return 0;
+        } else {
+            if (ch == '{' || ch == '[') {
+                depth++;
+                if (depth <= KEY_DEPTH)
+                    is_obj[depth] = ch == '{', keys[depth - 1][0] = '\0';
+            } else if (ch == '}' || ch == ']') {
+                depth--;
+            }
+            if (ch && strchr("{}[]:,", ch))   /* whitespace, true/false/null: nothing */
+                want_key = (ch == '{' || ch == ',') && depth >= 1 && depth <= KEY_DEPTH &&
+                           is_obj[depth];
+            i++;
+        }
+    }
+    return 1;
+}
+
 JsonNode *proto_parse_object(const char *text)
 {
     if (!text || !*text)

@@ -44,6 +44,21 @@ void proto_add_int(JsonBuilder *b, const char *key, gint64 v);
 void proto_add_dbl(JsonBuilder *b, const char *key, double v);
 void proto_add_bool(JsonBuilder *b, const char *key, int v);
 void proto_add_time(JsonBuilder *b, const char *key, int64_t t_ms);
+/* A number of a request line that json-glib would misread: an integer
+ * beyond gint64, which it wraps silently (2^64 - 1 reads as -1, 2^63 as
+ * -2^63), or a numeral JSON does not have (hex 0x10, octal 010, .5),
+ * which it accepts. */
+typedef struct proto_badnum {
+    char literal[48];   /* as written (cut) */
+    char key[48];       /* the member it is the value of (in an array: the
+                         * array's), "" at the top level of an array */
+    int top_id;         /* it is the request's "id" */
+    int not_json;       /* not a JSON number at all */
+} proto_badnum;
+
+/* 1 when every number of the JSON text (already parsed by json-glib) is
+ * read as written; else 0 with the first one that is not in *bad. */
+int proto_numbers_ok(const char *text, size_t len, proto_badnum *bad);
 /* Parse a JSON object text into a node (NULL when absent or not JSON). */
 JsonNode *proto_parse_object(const char *text);
 /* Serialise (compact) and release the node. */

@@ -8,6 +8,11 @@
 #include <string.h>
 
 #define SETTLE_SLICE_US 50000
+/* While idle with a stage connection open, it is checked this often (one
+ * poll() on the socket, nothing sent): a stage restarted meanwhile is
+ * then reported not connected by `status`, and the next run starts on a
+ * new connection. */
+#define STAGE_CHECK_US 1000000
 
 /* ---- thread-side helpers ------------------------------------------------ */
 
@@ -78,6 +83,19 @@ static void note_stage(runner *r, const char *error)
         r->st.stage_known = 1;
     }
     g_strlcpy(r->st.stage_error, error ? error : "", sizeof r->st.stage_error);
+    g_mutex_unlock(&r->mu);
+}
+
+/* Idle: has the stage closed the connection (restarted, powered off)? */
+static void check_stage(runner *r)
+{
+    if (!r->stg || stage_connected(r->stg))
+        return;
+    g_message("stage %s: connection closed by the stage", stage_label(r->stg));
+    g_mutex_lock(&r->mu);
+    r->st.stage_connected = 0;
+    snprintf(r->st.stage_error, sizeof r->st.stage_error, "stage %s: connection closed by "
+             "the stage", stage_label(r->stg));
     g_mutex_unlock(&r->mu);
 }
 
@@ -260,8 +278,16 @@ static gpointer thread_main(gpointer data)
     }
     for (;;) {
         g_mutex_lock(&r->mu);
-        while (!r->stopping && g_queue_is_empty(&r->queue))
-            g_cond_wait(&r->cv, &r->mu);
+        while (!r->stopping && g_queue_is_empty(&r->queue)) {
+            if (!r->st.stage_connected) {
+                g_cond_wait(&r->cv, &r->mu);
+            } else if (!g_cond_wait_until(&r->cv, &r->mu,
+                                          g_get_monotonic_time() + STAGE_CHECK_US)) {
+                g_mutex_unlock(&r->mu);
+                check_stage(r);
+                g_mutex_lock(&r->mu);
+            }
+        }
         runner_spec *sp = r->stopping ? NULL : g_queue_pop_head(&r->queue);
         r->cur = sp;
         r->abort_current = 0;

@@ -7,7 +7,9 @@
  * the FIFO move to the output buffer, so replies keep request order while
  * a slow request is pending.  The main loop watches POLLIN while the
  * client may send and POLLOUT only while output is waiting, so an idle
- * daemon does not spin.
+ * daemon does not spin.  An idle client (see server.h) has one timeout
+ * source, armed only while it is idle; activity only moves a timestamp,
+ * and the timer, when it fires early, re-arms itself for the rest.
  */
 #define _GNU_SOURCE
 #include "server.h"
@@ -45,6 +47,8 @@ typedef struct client {
     int subscribed;
     char *sub_run;     /* NULL: every run */
     int reading;       /* 0 after EOF or an oversized line */
+    gint64 active_us;  /* its last request or reply (monotonic) */
+    guint idle_timer;  /* armed while idle */
 } client;
 
 struct server {
@@ -52,6 +56,7 @@ struct server {
     int listen_fd;
     guint listen_watch;
     int max_clients;
+    int idle_ms;
     guint64 next_id;
     GHashTable *clients;   /* id -> client* */
     server_request_fn fn;
@@ -101,6 +106,50 @@ static void append_line(client *c, const char *line)
 }
 
 static gboolean on_client_io(gint fd, GIOCondition cond, gpointer data);
+static gboolean on_idle(gpointer data);
+
+/* Nothing in hand: not subscribed, no request pending, nothing to send,
+ * still reading. */
+static int is_idle(const client *c)
+{
+    return c->reading && !c->subscribed && c->slots.length == 0 &&
+           c->out->len == c->out_off;
+}
+
+/* Best effort, never blocking: an idle client's buffers are empty, and a
+ * socket takes one short line. */
+static void last_words(int fd, const char *code, const char *msg)
+{
+    char *line = error_line(code, msg);
+    if (send(fd, line, strlen(line), MSG_NOSIGNAL | MSG_DONTWAIT) > 0)
+        send(fd, "\n", 1, MSG_NOSIGNAL | MSG_DONTWAIT);
+    g_free(line);
+}
+
+static void arm_idle(client *c)
+{
+    gint64 left_ms = (c->active_us - g_get_monotonic_time()) / 1000 + c->srv->idle_ms;
+    c->idle_timer = g_timeout_add((guint)CLAMP(left_ms, 1, G_MAXINT), on_idle, c);
+}
+
+static gboolean on_idle(gpointer data)
+{
+    client *c = data;
+    server *s = c->srv;
+    c->idle_timer = 0;
+    double idle_s = (g_get_monotonic_time() - c->active_us) * 1e-6;
+    if (idle_s * 1000 < s->idle_ms) {   /* active since it was armed */
+        arm_idle(c);
+        return G_SOURCE_REMOVE;
+    }
+    char msg[128];
+    snprintf(msg, sizeof msg, "no request for %.1f s (client_idle_timeout_ms = %d): "
+             "connection closed", idle_s, s->idle_ms);
+    g_message("client %" G_GUINT64_FORMAT ": %s", c->id, msg);
+    last_words(c->fd, "idle", msg);
+    client_close(s, c);
+    return G_SOURCE_REMOVE;
+}
 
 static void update_watches(client *c)
 {
@@ -119,6 +168,11 @@ static void update_watches(client *c)
                                      c);
     else if (!want_out && c->out_watch)
         g_source_remove(c->out_watch), c->out_watch = 0;
+    int idle = is_idle(c);
+    if (idle && !c->idle_timer)
+        arm_idle(c);
+    else if (!idle && c->idle_timer)
+        g_source_remove(c->idle_timer), c->idle_timer = 0;
 }
 
 /* Move filled head slots to the output, write what the socket takes, and
@@ -128,6 +182,7 @@ static int client_pump(server *s, client *c)
     slot *sl;
     while ((sl = g_queue_peek_head(&c->slots)) && sl->line) {
         g_queue_pop_head(&c->slots);
+        c->active_us = g_get_monotonic_time();   /* idle counts from its last reply */
         append_line(c, sl->line);
         if (sl->subscribe) {
             c->subscribed = 1;
@@ -204,6 +259,7 @@ static int handle_lines(server *s, client *c)
         slot *sl = g_new0(slot, 1);
         sl->seq = c->next_seq++;
         g_queue_push_tail(&c->slots, sl);
+        c->active_us = g_get_monotonic_time();
         server_token tok = {id, sl->seq};
         s->fn(s, tok, line, len, s->user);
         if (!g_hash_table_lookup(s->clients, &id))
@@ -245,12 +301,39 @@ static void client_close(server *s, client *c)
         g_source_remove(c->in_watch);
     if (c->out_watch)
         g_source_remove(c->out_watch);
+    if (c->idle_timer)
+        g_source_remove(c->idle_timer);
     close(c->fd);
     g_string_free(c->in, TRUE);
     g_string_free(c->out, TRUE);
     g_queue_clear_full(&c->slots, slot_free);
     g_free(c->sub_run);
     g_hash_table_remove(s->clients, &c->id);   /* frees c */
+}
+
+/* Every slot taken: the client idle longest makes room (it is told why),
+ * so idle connections cannot lock the others out.  0 when none is idle. */
+static int evict_idlest(server *s)
+{
+    client *victim = NULL;
+    GHashTableIter it;
+    gpointer k, v;
+    g_hash_table_iter_init(&it, s->clients);
+    while (g_hash_table_iter_next(&it, &k, &v)) {
+        client *c = v;
+        if (is_idle(c) && (!victim || c->active_us < victim->active_us))
+            victim = c;
+    }
+    if (!victim)
+        return 0;
+    char msg[128];
+    snprintf(msg, sizeof msg, "idle for %.1f s: connection closed to let another client in "
+             "(max_clients = %d)", (g_get_monotonic_time() - victim->active_us) * 1e-6,
+             s->max_clients);
+    g_message("client %" G_GUINT64_FORMAT ": %s", victim->id, msg);
+    last_words(victim->fd, "idle", msg);
+    client_close(s, victim);
+    return 1;
 }
 
 static gboolean on_accept(gint fd, GIOCondition cond, gpointer data)
@@ -263,15 +346,14 @@ static gboolean on_accept(gint fd, GIOCondition cond, gpointer data)
             g_warning("accept on %s: %s", s->path, g_strerror(errno));
         return G_SOURCE_CONTINUE;
     }
-    if ((int)g_hash_table_size(s->clients) >= s->max_clients) {
+    if ((int)g_hash_table_size(s->clients) >= s->max_clients && !evict_idlest(s)) {
         char msg[96];
         snprintf(msg, sizeof msg, "too many clients (max_clients = %d); try later",
                  s->max_clients);
-        char *line = error_line("busy", msg);
-        /* A fresh socket's buffer takes one short line without blocking. */
-        if (send(cfd, line, strlen(line), MSG_NOSIGNAL | MSG_DONTWAIT) > 0)
-            send(cfd, "\n", 1, MSG_NOSIGNAL | MSG_DONTWAIT);
-        g_free(line);
+        /* A fresh socket's buffer takes one short line without blocking;
+         * it stays readable after the close, also when the client has
+         * already written its request. */
+        last_words(cfd, "busy", msg);
         close(cfd);
         return G_SOURCE_CONTINUE;
     }
@@ -282,6 +364,7 @@ static gboolean on_accept(gint fd, GIOCondition cond, gpointer data)
     c->in = g_string_sized_new(1024);
     c->out = g_string_sized_new(1024);
     c->reading = 1;
+    c->active_us = g_get_monotonic_time();
     g_queue_init(&c->slots);
     g_hash_table_insert(s->clients, &c->id, c);
     update_watches(c);
@@ -347,13 +430,14 @@ static void client_free_value(gpointer p)
     g_free(p);
 }
 
-int server_new(server **out, const char *path, int max_clients, server_request_fn fn,
-               void *user, sl_err *err)
+int server_new(server **out, const char *path, int max_clients, int idle_ms,
+               server_request_fn fn, void *user, sl_err *err)
 {
     server *s = g_new0(server, 1);
     s->path = g_strdup(path);
     s->listen_fd = -1;
     s->max_clients = max_clients > 0 ? max_clients : 64;
+    s->idle_ms = idle_ms > 0 ? idle_ms : 30000;
     s->fn = fn;
     s->user = user;
     s->ctx = g_main_context_ref_thread_default();

@@ -13,6 +13,15 @@
  * once its replies are out.  A client that stops reading is cut off when
  * SERVER_MAX_OUTPUT bytes are waiting for it (a subscriber must keep up).
  *
+ * Idle clients: a client is idle while it has nothing in hand (no request
+ * pending, no reply waiting, no subscription).  One idle for idle_ms
+ * since its last request or reply (a partial line does not count, so a
+ * client trickling bytes is idle too) is sent an `idle` error line and
+ * closed.  With max_clients connected, a newcomer takes the slot of the
+ * client idle longest (told the same); only when none is idle is the
+ * newcomer refused with `busy`.  So idle and slow clients cannot lock the
+ * daemon's slots: only working clients and subscribers keep theirs.
+ *
  * Access: the socket is created 0660 (umask held at 0117 across bind, so
  * it is never wider) and chowned to the daemon's euid/egid: the group is
  * the access control.  A stale socket (nobody listening) is replaced; a
@@ -43,7 +52,7 @@ typedef struct server_token {
 typedef void (*server_request_fn)(server *s, server_token tok, const char *line,
                                   size_t len, void *user);
 
-int server_new(server **out, const char *path, int max_clients,
+int server_new(server **out, const char *path, int max_clients, int idle_ms,
                server_request_fn fn, void *user, sl_err *err);
 /* Close the listening socket and unlink its path (idempotent). */
 void server_stop_listening(server *s);

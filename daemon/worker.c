@@ -8,12 +8,15 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include "catlock.h"
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
-#include "io/preview.h"
+#include "skyfig.h"
+#include "base/version.h"
 #include "base/wisdom.h"
 
 typedef struct wjob {
@@ -117,6 +120,25 @@ static int insert_recon(catalog *c, void *catalog_recon_arg)
     return catalog_recon_insert(c, rec, &rec->id);
 }
 
+/* The reconstruction's figure, titled with OBJECT or, for a bench run
+ * without one, the run and what was in the beam. */
+static int write_figure(const wjob *j, const pipeline_result *res, const char *png,
+                        sl_err *e)
+{
+    char name[96];
+    const char *screen = NULL, *mask = NULL;
+    cube_meta_get_str(&res->meta, "SCREEN", &screen);
+    cube_meta_get_str(&res->meta, "MASK", &mask);
+    if (screen && mask)
+        snprintf(name, sizeof name, "run %.8s (%s, %s)", j->uuid, screen, mask);
+    else
+        snprintf(name, sizeof name, "run %.8s", j->uuid);
+    skyfig_opts f;
+    skyfig_opts_init(&f);
+    skyfig_opts_from_result(&f, res, res->meta.object[0] ? NULL : name);
+    return skyfig_write_png(png, res->image, res->width, res->height, &f, e);
+}
+
 static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
                        outputs *o, sl_err *e)
 {
@@ -149,9 +171,9 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     if ((rc = output_paths(w, j, &o->fits, &o->png, e)) != SL_OK)
         goto clear_result;
     seq img = {res.width, res.height, 1, res.image};
+    snprintf(res.meta.creator, sizeof res.meta.creator, "specklabd %s", SPECKLAB_VERSION);
     if ((rc = cube_write(o->fits, &img, &res.meta, e)) != SL_OK ||
-        (rc = preview_write_png(o->png, res.image, res.width, res.height, PREVIEW_ASINH, e)) !=
-            SL_OK)
+        (rc = write_figure(j, &res, o->png, e)) != SL_OK)
         goto clear_result;
     /* The verdict (recon/pipeline/pipeline_binary.c): the closure-phase fit, else
      * the image fit, else the power spectrum's fringes; catalogued as a
@@ -296,6 +318,21 @@ reply:
     g_free(o.quality);
 }
 
+/* Reconstruction yields to acquisition: on a bench PC it shares the CPUs
+ * with the run being acquired, whose frames are lost when the camera's
+ * buffers are not emptied and stored in time, whereas a reconstruction
+ * only ends later.  Nice 10 gives it about a tenth of a CPU's share beside
+ * a nice-0 thread that wants the CPU, and all of it otherwise; the threads
+ * it starts (the pipeline's team, FFTW's) inherit the value. */
+#define WORKER_NICE 10
+
+static void yield_to_acquisition(void)
+{
+    pid_t tid = (pid_t)syscall(SYS_gettid);
+    if (setpriority(PRIO_PROCESS, (id_t)tid, WORKER_NICE) != 0)
+        g_message("recon thread: cannot lower its priority: %s", g_strerror(errno));
+}
+
 /* DATA_DIR/fftw-wisdom: FFTW's planner state is global, so only this
  * thread (the daemon's one planner) imports and exports it. */
 static void wisdom(worker *w, int save)
@@ -312,6 +349,7 @@ static void wisdom(worker *w, int save)
 static gpointer thread_main(gpointer data)
 {
     worker *w = data;
+    yield_to_acquisition();
     wisdom(w, 0);
     for (;;) {
         g_mutex_lock(&w->mu);

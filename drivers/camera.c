@@ -18,7 +18,8 @@
 
 /* Settings made through the interface, for camera_reconnect. */
 typedef struct want {
-    int roi, bin, fmt, exp, gain, fps, trig;  /* which are set */
+    int roi, bin, fmt, exp, gain, fps, trig, beat;  /* which are set */
+    int beat_ms;
     int x, y, w, h, bx, by;
     camera_pixfmt pixfmt;
     double exp_us, gain_db, fps_hz;
@@ -370,7 +371,27 @@ static int reapply(camera *c)
         rc = camera_set_frame_rate_hz(c, w.fps_hz);
     if (rc == SL_OK && w.trig)
         rc = camera_set_trigger(c, w.trigger);
+    if (rc == SL_OK && w.beat)
+        rc = camera_set_heartbeat_ms(c, w.beat_ms);
     return rc;
+}
+
+int camera_set_heartbeat_ms(camera *c, int ms)
+{
+    if (ms < 100 || ms > 600000)
+        return sl_seterr(&c->err, SL_ERANGE, "camera %s: heartbeat timeout %d ms outside "
+                         "100..600000", c->target, ms);
+    int rc = c->be->set_heartbeat_ms(c->st, ms, &c->err);
+    if (rc == SL_OK)
+        c->w.beat = 1, c->w.beat_ms = ms;
+    return rc;
+}
+
+int camera_heartbeat_ms(camera *c, int *ms)
+{
+    if (!ms)
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: NULL output", c->target);
+    return c->be->get_heartbeat_ms(c->st, ms, &c->err);
 }
 
 int camera_reconnect(camera *c, int timeout_ms)

@@ -30,7 +30,8 @@
  * timeout plus retries); until then camera_pop returns CAMERA_ETIMEOUT
  * after each timeout_ms.  camera_reconnect re-opens the same address or id,
  * re-applies every setting made through this interface and restarts the
- * stream if it was running; statistics carry over.
+ * stream if it was running; statistics carry over, the frame-id count
+ * included (frames the camera sent meanwhile are id gaps).
  *
  * Threads: one thread per handle.  Not async-signal-safe.
  */
@@ -176,6 +177,10 @@ typedef struct camera_backend {
      * gaps); camera.c counts the frames. */
     void (*stats)(void *st, camera_stats *out);
     int (*reconnect)(void *st, int timeout_ms, sl_err *err);
+    /* How long the camera keeps this host in control without hearing
+     * from it; SL_OK and *ms = 0 when the transport has no heartbeat. */
+    int (*set_heartbeat_ms)(void *st, int ms, sl_err *err);
+    int (*get_heartbeat_ms)(void *st, int *ms, sl_err *err);
 } camera_backend;
 
 extern const camera_backend camera_backend_aravis;
@@ -215,6 +220,16 @@ int camera_set_gain_db(camera *c, double gain_db);
 int camera_set_frame_rate_hz(camera *c, double frame_rate_hz);
 int camera_set_trigger(camera *c, camera_trigger mode);
 int camera_trigger_software(camera *c);
+
+/* The heartbeat timeout (GigE Vision GevHeartbeatTimeout, 100..600000 ms):
+ * the camera drops this host's control when it hears nothing from it for
+ * that long, and Aravis reports "control lost".  A busy host or camera
+ * (reconstruction, other programs) can miss the default 3 s; a longer one
+ * also keeps a crashed host's control that much longer, so a restarted
+ * one waits for it.  Re-applied by camera_reconnect.  A transport with no
+ * heartbeat (USB3 Vision) accepts it and reads 0. */
+int camera_set_heartbeat_ms(camera *c, int ms);
+int camera_heartbeat_ms(camera *c, int *ms);
 
 /* Start streaming into a pool of nbuffers buffers (2..1024; 0 = 16). */
 int camera_start(camera *c, int nbuffers);

@@ -412,6 +412,7 @@ static int arv_reconnect(void *st, int timeout_ms, sl_err *err)
     gint64 backoff_us = 100000;
     sl_err last = {0};
     teardown(a);
+    a->resuming = a->acquiring;
     a->acquiring = 0;
     a->trigger_set = 0;
     for (int attempt = 1;; attempt++) {
@@ -425,6 +426,40 @@ static int arv_reconnect(void *st, int timeout_ms, sl_err *err)
         g_usleep((gulong)MIN(backoff_us, left));
         backoff_us = MIN(backoff_us * 2, 1000000);
     }
+}
+
+/* GigE Vision's bootstrap register Heartbeat Timeout [ms]: every GigE
+ * Vision camera has it (GevHeartbeatTimeout in GenICam terms); USB3
+ * Vision has no heartbeat. */
+#define GV_HEARTBEAT_TIMEOUT_REG 0x0938
+
+static int arv_set_heartbeat_ms(void *st, int ms, sl_err *err)
+{
+    arvcam *a = st;
+    GError *ge = NULL;
+    if (g_atomic_int_get(&a->lost))
+        return arvcam_lost(err, a);
+    if (!arv_camera_is_gv_device(a->cam))
+        return SL_OK;
+    arv_device_write_register(a->dev, GV_HEARTBEAT_TIMEOUT_REG, (guint32)ms, &ge);
+    return ge ? arvcam_fail(err, a, "set the heartbeat timeout", ge) : SL_OK;
+}
+
+static int arv_get_heartbeat_ms(void *st, int *ms, sl_err *err)
+{
+    arvcam *a = st;
+    GError *ge = NULL;
+    guint32 v = 0;
+    *ms = 0;
+    if (g_atomic_int_get(&a->lost))
+        return arvcam_lost(err, a);
+    if (!arv_camera_is_gv_device(a->cam))
+        return SL_OK;
+    arv_device_read_register(a->dev, GV_HEARTBEAT_TIMEOUT_REG, &v, &ge);
+    if (ge)
+        return arvcam_fail(err, a, "read the heartbeat timeout", ge);
+    *ms = (int)v;
+    return SL_OK;
 }
 
 const camera_backend camera_backend_aravis = {
@@ -449,4 +484,6 @@ const camera_backend camera_backend_aravis = {
     .stop = arvcam_stop,
     .stats = arvcam_stats,
     .reconnect = arv_reconnect,
+    .set_heartbeat_ms = arv_set_heartbeat_ms,
+    .get_heartbeat_ms = arv_get_heartbeat_ms,
 };

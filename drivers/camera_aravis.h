@@ -24,6 +24,7 @@ typedef struct arvcam {
     uint64_t old_missing, old_resent, old_underruns; /* closed streams */
     uint64_t id_gaps, last_id;
     int have_last_id;
+    int resuming;               /* reconnected: the next start keeps last_id */
 } arvcam;
 
 int arvcam_fail(sl_err *err, const arvcam *a, const char *doing, GError *ge);

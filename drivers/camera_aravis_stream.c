@@ -61,7 +61,11 @@ int arvcam_start(void *st, int nbuffers, sl_err *err)
         return arvcam_fail(err, a, "start the acquisition", ge);
     }
     a->acquiring = 1;
-    a->have_last_id = 0;
+    /* A new acquisition counts ids afresh; one resumed after a reconnect
+     * counts the frames sent meanwhile as gaps. */
+    if (!a->resuming)
+        a->have_last_id = 0;
+    a->resuming = 0;
     return SL_OK;
 }
 

@@ -131,7 +131,7 @@ const char *stage_label(const stage *s)
     return stage_link_label(s->link);
 }
 
-int stage_connected(const stage *s)
+int stage_connected(stage *s)
 {
     return stage_link_connected(s->link);
 }
@@ -390,7 +390,7 @@ static int arrived(const wheel_op *o, const stage_wheel_status *st)
 static int wait_one(stage *s, int wheel, double deadline_s, double t_wait)
 {
     const wheel_op *o = &s->last[wheel];
-    double t0 = o->op != OP_NONE ? o->t0_s : t_wait;
+    double t0 = o->op != OP_NONE ? o->t0_s : t_wait, silent_since = -1;
     char what[96], pos[32], why[SL_ERRMSG_MAX] = "no status read yet";
     stage_wheel_status st;
     int seen_busy = 0, have = 0;
@@ -398,10 +398,16 @@ static int wait_one(stage *s, int wheel, double deadline_s, double t_wait)
     for (;;) {
         sl_err e = {0};
         int exc;
-        int rc = read_wheel(s, wheel, &st, deadline_s, &exc, &e);
+        /* One read is a call: bounded by the call timeout, not the move's,
+         * and while the stage is silent by what is left of that. */
+        double t_read = stage_now_s();
+        double read_by = (silent_since < 0 ? t_read : silent_since) + s->call_ms * 1e-3;
+        int rc = read_wheel(s, wheel, &st, read_by < deadline_s ? read_by : deadline_s, &exc,
+                            &e);
         double now = stage_now_s();
         if (rc == SL_OK) {
             have = 1;
+            silent_since = -1;
             if (st.faulted)
                 return fail(s, SL_EDATA, "%s %s (fault %d: %s) after %.1f s",
                             what, st.fault == STAGE_FAULT_STALL ? "stalled"
@@ -416,11 +422,26 @@ static int wait_one(stage *s, int wheel, double deadline_s, double t_wait)
                             where(&st, pos, sizeof pos), now - t0);
         } else if (exc || rc == SL_EFORMAT) {
             return fail(s, rc, "%s: status: %s", what, e.msg);
-        } else {
-            /* Link trouble: the read is safe to repeat, so keep polling
-             * (the link reconnects with backoff) until the deadline. */
+        } else if (stage_link_outcome(s->link) == STAGE_LINK_LATE) {
+            /* No time left to ask: the last status stands. */
+        } else if (stage_link_outcome(s->link) == STAGE_LINK_BUSY) {
+            /* It answers, busy: the move's timeout bounds that. */
             snprintf(why, sizeof why, "%s", e.msg);
             have = 0;
+            silent_since = -1;
+        } else {
+            /* Link trouble: the read is safe to repeat, so keep polling
+             * (the link reconnects with backoff) - for one call timeout.
+             * A stage silent for longer is gone or restarted (its move is
+             * lost either way): waiting out the move's timeout would only
+             * hold the caller. */
+            snprintf(why, sizeof why, "%s", e.msg);
+            have = 0;
+            if (silent_since < 0)
+                silent_since = t_read;
+            if (now - silent_since >= s->call_ms * 1e-3)
+                return fail(s, SL_EIO, "%s not confirmed: no answer from the stage for "
+                            "%.1f s: %s", what, now - silent_since, why);
         }
         /* Stop a poll early rather than send one with no time to answer:
          * that would only replace the last status with "deadline". */

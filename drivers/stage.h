@@ -10,6 +10,13 @@
  * next call reconnects, with an exponential backoff between attempts
  * (backoff_min_ms .. backoff_max_ms) that never runs past the call's
  * deadline.  MODBUS_ERROR_RECOVERY_LINK is never used: it can block forever.
+ * A connection the stage closed between calls (it was restarted) is
+ * replaced before the next request is sent, and a read (status, identity)
+ * whose connection drops mid-request reconnects and asks again within the
+ * call's bound: a read is idempotent, a command is not, so a command that
+ * lost its link is reported.  While stage_wait polls, the stage may stop
+ * answering for at most cfg.call_timeout_ms: a stage that refuses
+ * connections or is gone fails the wait then, not at its own timeout.
  *
  * Connecting is lazy: stage_new only builds the handle (so an RTU handle
  * can be made without its serial port, and a daemon can start before the
@@ -81,8 +88,10 @@ void stage_free(stage *s);
 const char *stage_errmsg(const stage *s);
 /* "HOST:PORT" or the serial device: the prefix of every message. */
 const char *stage_label(const stage *s);
-/* 1 while a verified connection is open. */
-int stage_connected(const stage *s);
+/* 1 while a verified connection is open and the stage has not closed it
+ * (a restarted stage closes it; checked on the socket, no request sent,
+ * and a dead connection is closed so the next call opens a new one). */
+int stage_connected(stage *s);
 
 /* Connect if needed and report the identity registers. */
 int stage_info(stage *s, stage_ident *out);

@@ -5,19 +5,29 @@
  * answers the next request (EMBBADDATA, or worse, plausible data).  The only
  * safe resynchronisation is a new connection (TCP) or a flushed line
  * (RTU), so any timeout, garbled reply or socket error closes the link.
- * A failed request is not re-sent within the same call (a command may or
- * may not have been executed); the next call reconnects.  Connection
- * attempts are spaced by an exponential backoff that persists across calls,
- * so a caller polling a dead stage does not hammer it, and each call fails
- * fast when its deadline falls before the next allowed attempt.
- * MODBUS_ERROR_RECOVERY_LINK is never enabled: it reconnects inside
- * libmodbus with its own unbounded loop.
+ * Connection attempts are spaced by an exponential backoff that persists
+ * across calls, so a caller polling a dead stage does not hammer it, and
+ * each call fails fast when its deadline falls before the next allowed
+ * attempt.  MODBUS_ERROR_RECOVERY_LINK is never enabled: it reconnects
+ * inside libmodbus with its own unbounded loop.
+ *
+ * Stale links: a stage that was restarted (power-cycled, its process
+ * killed) leaves our end of the TCP connection open until something is
+ * sent on it.  So before each request the socket is checked without a
+ * byte on the wire (the peer's FIN or stray bytes: either way the link is
+ * no longer ours to use) and a dead link is replaced before the request
+ * goes out, a command included.  A link that drops while a request is in
+ * flight is retried only for reads (READ_RETRIES times, within the call's
+ * deadline): a read changes nothing at the stage, whereas a command may
+ * or may not have been executed, so a failed write is reported and the
+ * next call reconnects.
  */
 #include "stage_modbus.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
 #include <math.h>
+#include <poll.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,6 +36,9 @@
 
 #include <modbus.h>
 
+/* A read whose link dropped mid-request is asked again this many times. */
+#define READ_RETRIES 2
+
 /* A transport: how to make its libmodbus context and what to do after a
  * connection is up.  Everything else is protocol-generic. */
 typedef struct stage_backend {
@@ -33,6 +46,8 @@ typedef struct stage_backend {
     modbus_t *(*create)(const stage_config *cfg, char *label, size_t n,
                         sl_err *e);
     void (*on_connect)(modbus_t *ctx);
+    /* 0 when an open connection can no longer carry a request. */
+    int (*alive)(modbus_t *ctx);
 } stage_backend;
 
 struct stage_link {
@@ -41,6 +56,7 @@ struct stage_link {
     char label[160];
     int response_ms, backoff_min_ms, backoff_max_ms;
     int connected;
+    int outcome;       /* STAGE_LINK_*: how the last request ended */
     double next_try_s; /* no connection attempt before this */
     int backoff_ms;    /* delay scheduled after the next failure */
     char last[256];    /* why the link is down */
@@ -86,6 +102,17 @@ static void tcp_on_connect(modbus_t *ctx)
     (void)ctx; /* a fresh socket has nothing stale in it */
 }
 
+/* Between requests nothing may be waiting on the socket: the peer's FIN
+ * (the stage restarted or closed it: readable, end of stream), an error or
+ * hang-up, or bytes no request asked for (a late reply).  One poll, no
+ * traffic. */
+static int tcp_alive(modbus_t *ctx)
+{
+    struct pollfd p = {modbus_get_socket(ctx), POLLIN, 0};
+    int n = poll(&p, 1, 0);
+    return p.fd >= 0 && n == 0;
+}
+
 static modbus_t *rtu_create(const stage_config *cfg, char *label, size_t n,
                             sl_err *e)
 {
@@ -112,9 +139,15 @@ static void rtu_on_connect(modbus_t *ctx)
     modbus_flush(ctx); /* drop bytes left on the line by an earlier exchange */
 }
 
+static int rtu_alive(modbus_t *ctx)
+{
+    (void)ctx; /* a serial line has no connection to lose */
+    return 1;
+}
+
 static const stage_backend backends[] = {
-    {"tcp", tcp_create, tcp_on_connect},
-    {"rtu", rtu_create, rtu_on_connect},
+    {"tcp", tcp_create, tcp_on_connect, tcp_alive},
+    {"rtu", rtu_create, rtu_on_connect, rtu_alive},
 };
 #define NBACKENDS ((int)(sizeof backends / sizeof backends[0]))
 
@@ -186,9 +219,27 @@ const char *stage_link_label(const stage_link *l)
     return l->label;
 }
 
-int stage_link_connected(const stage_link *l)
+/* A link found dead between requests: closed at once, and the next
+ * attempt not delayed (the link failed on the stage's side, not on a
+ * request of ours). */
+static void drop_if_dead(stage_link *l)
 {
+    if (!l->connected || l->be->alive(l->ctx))
+        return;
+    modbus_close(l->ctx);
+    l->connected = 0;
+    snprintf(l->last, sizeof l->last, "connection closed by the stage");
+}
+
+int stage_link_connected(stage_link *l)
+{
+    drop_if_dead(l);
     return l->connected;
+}
+
+int stage_link_outcome(const stage_link *l)
+{
+    return l->outcome;
 }
 
 const stage_ident *stage_link_ident(const stage_link *l)
@@ -381,22 +432,29 @@ int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
     return SL_OK;
 }
 
+/* One request; *dropped is 1 when the link closed under it. */
 static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
-                   double deadline_s, int *exc, sl_err *e)
+                   double deadline_s, int *exc, sl_err *e, int *dropped)
 {
     int en = 0, to_ms = 0;
     char why[128];
     *exc = 0;
+    *dropped = 0;
+    l->outcome = STAGE_LINK_FAILED;
+    drop_if_dead(l);
     int rc = stage_link_ensure(l, deadline_s, e);
     if (rc != SL_OK)
         return rc;
     double t0 = stage_now_s();
     switch (exchange(l, write, addr, n, buf, deadline_s, &en, &to_ms)) {
     case X_OK:
+        l->outcome = STAGE_LINK_DONE;
         return SL_OK;
     case X_LATE:
+        l->outcome = STAGE_LINK_LATE;
         return sl_seterr(e, SL_EIO, "call deadline reached before the request");
     case X_BUSY:
+        l->outcome = STAGE_LINK_BUSY;
         return sl_seterr(e, SL_EIO, "stage busy (exception 0x06) for %.1f s, "
                          "until the call's deadline", stage_now_s() - t0);
     case X_EXC:
@@ -404,6 +462,8 @@ static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
         return sl_seterr(e, SL_EIO, "exception 0x%02X (%s)", *exc,
                          modbus_strerror(en));
     default:
+        *dropped = en == ECONNRESET || en == EPIPE || en == ENOTCONN ||
+                   en == ECONNABORTED;
         return go_down(l, e, SL_EIO, "%s (reconnecting)",
                        link_reason(en, to_ms, why, sizeof why));
     }
@@ -412,7 +472,13 @@ static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
 int stage_link_read(stage_link *l, int addr, int n, uint16_t *dst,
                     double deadline_s, int *exc, sl_err *e)
 {
-    return request(l, 0, addr, n, dst, deadline_s, exc, e);
+    int dropped = 0, rc;
+    for (int attempt = 0;; attempt++) {
+        rc = request(l, 0, addr, n, dst, deadline_s, exc, e, &dropped);
+        if (rc == SL_OK || !dropped || attempt == READ_RETRIES ||
+            stage_now_s() >= deadline_s)
+            return rc;
+    }
 }
 
 int stage_link_write(stage_link *l, int addr, int n, const uint16_t *src,
@@ -422,5 +488,6 @@ int stage_link_write(stage_link *l, int addr, int n, const uint16_t *src,
     if (n < 1 || n > MODBUS_MAX_WRITE_REGISTERS)
         return sl_seterr(e, SL_EINVAL, "write of %d registers", n);
     memcpy(buf, src, (size_t)n * sizeof *buf);
-    return request(l, 1, addr, n, buf, deadline_s, exc, e);
+    int dropped;
+    return request(l, 1, addr, n, buf, deadline_s, exc, e, &dropped);
 }

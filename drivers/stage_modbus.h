@@ -5,7 +5,10 @@
  * every (re)connection, retries "slave busy" (exception 0x06) until the
  * caller's deadline, and after a timeout / bad data / connection error
  * closes the connection and schedules the next attempt with exponential
- * backoff.  Deadlines are absolute monotonic seconds (stage_now_s()).
+ * backoff; a link the stage closed between requests is replaced before
+ * the next one, and a read whose link drops mid-request is asked again
+ * within its deadline.  Deadlines are absolute monotonic seconds
+ * (stage_now_s()).
  * Messages written to e are the bare reason ("no reply within 500 ms
  * (reconnecting)"); stage.c prefixes the stage and the operation.
  */
@@ -25,7 +28,15 @@ void stage_sleep_s(double d);
 int stage_link_new(stage_link **out, const stage_config *cfg, sl_err *err);
 void stage_link_free(stage_link *l);
 const char *stage_link_label(const stage_link *l);
-int stage_link_connected(const stage_link *l);
+/* 1 while a verified connection is open and not closed by the stage
+ * (checked on the socket, no request sent; a dead one is closed). */
+int stage_link_connected(stage_link *l);
+/* How the last request ended: done; the stage kept answering "busy"
+ * until the deadline (it is there); the deadline came before it could be
+ * sent (nothing learnt about the stage); failed (no connection, no
+ * reply, a dropped link, an exception). */
+enum { STAGE_LINK_DONE, STAGE_LINK_BUSY, STAGE_LINK_LATE, STAGE_LINK_FAILED };
+int stage_link_outcome(const stage_link *l);
 /* Identity read at the last successful connection (zeros before one). */
 const stage_ident *stage_link_ident(const stage_link *l);
 

@@ -21,7 +21,10 @@
  * Readiness: once GVCP is listening and the first configuration's
  * simulator exists, it prints "READY ADDRESS SERIAL" on stdout and, with
  * --ready-fd FD, writes the same line to FD and closes it.  SIGTERM and
- * SIGINT stop it cleanly (exit 0).
+ * SIGINT stop it cleanly (exit 0).  SIGUSR1 drops the controlling host
+ * (the control channel privilege goes to 0, streaming stops), as a camera
+ * does whose heartbeat timeout ran out while its host was busy: the host
+ * sees "control lost" at its next heartbeat and may take control again.
  */
 #include <glib-unix.h>
 #include <math.h>
@@ -44,6 +47,7 @@ typedef struct opts {
 
 typedef struct app {
     opts o;
+    ArvFakeCamera *fake;   /* while serving */
     renderer *r;
     stage_poll *stage;
     beam last;
@@ -62,6 +66,15 @@ static void say(const app *a, const char *fmt, ...)
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     va_end(ap);
+}
+
+/* SIGUSR1: the controller's heartbeat "ran out". */
+static gboolean on_drop_control(gpointer data)
+{
+    app *a = data;
+    say(a, "dropping the controlling host (SIGUSR1)");
+    arv_fake_camera_set_control_channel_privilege(a->fake, 0);
+    return G_SOURCE_CONTINUE;
 }
 
 static int parse_size(const char *text, int *w, int *h, sl_err *e)
@@ -254,6 +267,8 @@ static int serve(app *a, const fakecam_model *m, mask **masks, int nmasks)
     a->loop = g_main_loop_new(NULL, FALSE);
     g_unix_signal_add(SIGTERM, on_signal, a);
     g_unix_signal_add(SIGINT, on_signal, a);
+    a->fake = fake;
+    g_unix_signal_add(SIGUSR1, on_drop_control, a);
     if (a->stage)
         g_timeout_add((guint)a->o.stage_poll_ms, poll_stage, a);
     announce(a);

@@ -1,5 +1,5 @@
 /* bench.c - see bench.h: measurement and scores.  The simulated data sets
- * are in bench_sim.c, the chart in bench_plot.c. */
+ * are in bench_sim.c. */
 #include "bench.h"
 
 #include <errno.h>

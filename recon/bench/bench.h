@@ -1,6 +1,7 @@
 /* bench.h - measuring reconstructions against known truth: simulated data
  * sets on disk, one end-to-end pipeline_run per forked child (wall, CPU,
- * peak memory), error scores, the Pareto front and the time/error chart.
+ * peak memory), error scores and the Pareto front (the time/error chart
+ * is drawn by the figure room, figure/chart.h).
  *
  * Why a child per measurement: a process's peak RSS (ru_maxrss) only ever
  * grows, so measuring several configurations in one process would report
@@ -37,7 +38,6 @@
 #include <stdint.h>
 
 #include "pipeline/pipeline.h"
-#include "plot.h"
 #include "base/status.h"
 
 /* ---- simulated data sets ---------------------------------------------- */
@@ -217,7 +217,7 @@ int bench_verdict_errors(const bench_verdict *v, const bench_truth *t,
 int bench_highpass(const float *in, float *out, int w, int h,
                    double sigma_px);
 
-/* ---- Pareto front and chart -------------------------------------------- */
+/* ---- Pareto front ------------------------------------------------------ */
 
 /* front[i] = 1 when no other point is at least as good in both x and y
  * and better in one (smaller is better in both); points with a non-finite
@@ -225,27 +225,5 @@ int bench_highpass(const float *in, float *out, int w, int h,
  * are all on the front.  O(n^2). */
 void bench_pareto(const double *x, const double *y, int n,
                   unsigned char *front);
-
-typedef struct bench_series {
-    const char *name;           /* legend text */
-    plot_shape shape;
-    int filled;
-    float grey;                 /* 0 black .. 0.7 light grey */
-} bench_series;
-
-typedef struct bench_point {
-    double time_s, err;         /* x and y; <= 0 or non-finite: not drawn */
-    int series;                 /* index into series */
-    int panel;                  /* index into panel titles */
-    int front;                  /* on its panel's Pareto front */
-} bench_point;
-
-/* Log-log chart of run time (x) against error (y), one panel per title
- * (laid out 3 across, at most 12), markers per series, each panel's front
- * points joined by a line in order of time, a legend below.  Axes span the
- * decades of the drawn points (shared by all panels, so they compare). */
-int bench_plot_png(const char *path, const bench_point *pts, int n,
-                   const bench_series *series, int nseries,
-                   const char *const *panels, int npanels, sl_err *err);
 
 #endif

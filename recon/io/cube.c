@@ -1,7 +1,9 @@
 /* cube.c - the streaming FITS reader; see cube.h.
- * Metadata helpers and the writer live in cube_write.c. */
+ * The metadata is cube_meta.c's, the header's keywords cube_header.c's,
+ * the writer cube_write.c. */
 #include "cube.h"
 #include "cube_guard.h"
+#include "cube_header.h"
 
 #include <errno.h>
 #include <fitsio.h>
@@ -61,7 +63,10 @@ static int take_standard(cube_meta *m, const char *key, const char *val,
             : !strcmp(key, "BUNIT")    ? m->bunit : NULL;
     double *d = !strcmp(key, "EXPTIME")    ? &m->exptime_s
               : !strcmp(key, "PLTSCALE") ? &m->plate_scale_arcsec
-              : !strcmp(key, "WAVELEN")  ? &m->wavelength_m : NULL;
+              : !strcmp(key, "PIXASPCT") ? &m->pixel_aspect
+              : !strcmp(key, "WAVELEN")  ? &m->wavelength_m
+              : !strcmp(key, "RA")       ? &m->ra_deg
+              : !strcmp(key, "DEC")      ? &m->dec_deg : NULL;
     char txt[CUBE_STR_MAX];
     if (dtype == 'C')
         unquote(val, txt);
@@ -89,8 +94,12 @@ static void take_card(cube_meta *m, const char *key, const char *val,
 {
     char dtype = 0;
     int st = 0;
+    if (!strcmp(key, "HISTORY")) {
+        cube_header_take_history(m, comment);
+        return;
+    }
     if (val[0] == '\0')
-        return; /* commentary card */
+        return; /* other commentary card */
     /* A tile-compressed image exposes its binary-table keywords. */
     if (compressed && (key[0] == 'Z' || !strcmp(key, "TFIELDS") ||
                        !strncmp(key, "TTYPE", 5) || !strncmp(key, "TFORM", 5)))

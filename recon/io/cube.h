@@ -14,7 +14,45 @@
  *
  * Metadata: the standard keywords have fields; every other user keyword
  * travels in a bounded list of extras so a read/write round trip keeps
- * simulation and processing parameters.
+ * simulation and processing parameters; HISTORY text travels too.
+ *
+ * The standard header of every image HDU written here (the cube, a 2-D
+ * image, each image extension):
+ *   DATE      when the file was written (UTC, ISO-8601): the file's, never
+ *             copied from a file read;
+ *   CREATOR   the program and its version (meta.creator, by default
+ *             'specklab ' SPECKLAB_VERSION, base/version.h);
+ *   BUNIT     the pixel values' unit when the caller knows it ('adu' for
+ *             camera cubes, 'relative flux' for reconstructions);
+ *   WCS       derived from the plate scale, never copied (below);
+ *   HISTORY   meta.history: the inputs and parameters that made the data,
+ *             one entry per line, wrapped over cards of 72 characters;
+ *   CHECKSUM, DATASUM  (FITS 4.0 Appendix J) right for the file after
+ *             every cube_writer_flush and after close; the streaming cube
+ *             keeps its DATASUM as frames are appended (recon/io/datasum.h)
+ *             so a flush costs a header's sum, not a read of the data.
+ *             Between flushes the header's sums lag the data: a crash
+ *             there leaves a cube whose frames read but whose CHECKSUM
+ *             fails until it is rewritten (specklabd's salvage does).
+ *
+ * WCS (FITS Papers I and II).  The pixel grid is seq.h's: +y is north and
+ * -x is east (north up, east left), and the centre where reconstructions
+ * put the object is pixel (width/2, height/2) 0-based, so CRPIX1 =
+ * width/2 + 1 and CRPIX2 = height/2 + 1 (1-based, integer division).
+ * With a plate scale s [arcsec/px] (PLTSCALE; rows are pixel_aspect times
+ * taller when it is set):
+ *   - offsets from the centre, the primary WCS: CTYPE1 'EOFFSET' (towards
+ *     the east), CTYPE2 'NOFFSET' (towards the north), linear, CUNIT
+ *     'arcsec', CRVAL 0, CDELT1 = -s (east is -x), CDELT2 = +s aspect; a
+ *     companion at (dx, dy) px from the primary is at (-dx s, dy s aspect)
+ *     arcsec east and north, PA = atan2(east, north);
+ *   - when RA and DEC are known as well, the primary WCS is celestial
+ *     (RA---TAN, DEC--TAN, CUNIT 'deg', CRVAL = RA, DEC at the centre,
+ *     CDELT1 = -s/3600, CDELT2 = s aspect/3600, RADESYS 'ICRS') and the
+ *     offsets are the alternate WCS 'A' (CTYPE1A, CDELT1A, ...).
+ * Without a plate scale no WCS is written: pixel coordinates only.
+ * A read never keeps WCS keywords (the writer derives them for the grid it
+ * writes), nor DATE or CREATOR.
  */
 #ifndef SL_CUBE_H
 #define SL_CUBE_H
@@ -28,6 +66,8 @@
 #define CUBE_STR_MAX 69     /* a one-card FITS string value: 68 chars + NUL */
 #define CUBE_COMMENT_MAX 73 /* cfitsio's FLEN_COMMENT */
 #define CUBE_META_MAX_EXTRA 128
+#define CUBE_HISTORY_MAX 8192  /* bytes of HISTORY text in a cube_meta */
+#define CUBE_HISTORY_CARD 72   /* text characters on one HISTORY card */
 
 typedef enum cube_kv_type {
     CUBE_KV_NUM,  /* written as an integer when integral, else %.17G */
@@ -51,6 +91,13 @@ typedef struct cube_meta {
     char bunit[CUBE_STR_MAX];     /* BUNIT */
     double plate_scale_arcsec;    /* PLTSCALE [arcsec/pixel], NAN = absent */
     double wavelength_m;          /* WAVELEN [m], NAN = absent */
+    double pixel_aspect;          /* PIXASPCT: pixel height / width, NAN =
+                                   * square; PLTSCALE is the x pitch */
+    double ra_deg, dec_deg;       /* RA, DEC [deg, ICRS] at the image
+                                   * centre, NAN = absent; numbers only */
+    char creator[CUBE_STR_MAX];   /* CREATOR to write, "" = 'specklab
+                                   * <version>'; a read leaves it "" */
+    char history[CUBE_HISTORY_MAX]; /* HISTORY entries, each ending '\n' */
     int nextra;
     int ndropped;  /* keywords a read could not keep: list full, or a
                     * value that does not parse (e.g. EXPTIME = 'n/a') */
@@ -61,14 +108,24 @@ typedef struct cube_meta {
 void cube_meta_init(cube_meta *m);
 /* Add or replace an extra keyword (key is upper-cased).  SL_EINVAL for a
  * key that is empty, longer than 8 characters, not [A-Z0-9_-], structural
- * (NAXIS1, BZERO, ...) or one of the standard fields above (set the field
- * instead), or a non-finite number; SL_ERANGE when the list is full or the
- * string is longer than 68 characters.  comment may be NULL; long comments
- * are cut. */
+ * (NAXIS1, BZERO, CHECKSUM, ...), one the writer derives (DATE, CREATOR,
+ * the WCS: CTYPE1, CDELT2A, ...) or one of the standard fields above (set
+ * the field instead), or a non-finite number; SL_ERANGE when the list is
+ * full or the string is longer than 68 characters.  comment may be NULL;
+ * long comments are cut. */
 int cube_meta_set_num(cube_meta *m, const char *key, double value,
                       const char *comment);
 int cube_meta_set_str(cube_meta *m, const char *key, const char *value,
                       const char *comment);
+/* Append one HISTORY entry (printf format).  Written as HISTORY cards of
+ * CUBE_HISTORY_CARD characters, wrapped at blanks; a '\n' in the text
+ * starts a new card; a character FITS text cannot hold (outside ' '..'~')
+ * is written as '?'.  SL_ERANGE when m->history cannot hold it (nothing is
+ * added).  A read keeps at most CUBE_HISTORY_MAX / 2 bytes of a file's
+ * HISTORY cards, one entry per card, and counts the rest in ndropped, so
+ * a caller always has room for its own. */
+int cube_meta_add_history(cube_meta *m, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
 /* Look up an extra keyword (case-insensitive).  SL_OK, SL_EINVAL when
  * absent, SL_EDATA when it has the other type (a logical reads as a
  * number 0/1).  Standard fields are not extras: read them directly. */
@@ -141,8 +198,10 @@ typedef struct cube_writer cube_writer;
 
 /* Create or overwrite path with an empty cube (NAXIS=3, NAXIS3=0) and its
  * header: DATE-OBS (now, UTC, if meta has none), then EXPTIME, INSTRUME,
- * OBJECT, BUNIT, PLTSCALE, WAVELEN when set, then the extras.  meta may be
- * NULL.  The path is taken literally (no cfitsio "[ext]" or "!" syntax). */
+ * OBJECT, BUNIT, PLTSCALE, PIXASPCT, WAVELEN, RA, DEC when set, the
+ * extras, then the standard header above (DATE, CREATOR, WCS, HISTORY,
+ * CHECKSUM, DATASUM).  meta may be NULL.  The path is taken literally (no
+ * cfitsio "[ext]" or "!" syntax). */
 int cube_writer_open(cube_writer **out, const char *path, int width,
                      int height, int bitpix, const cube_meta *meta,
                      sl_err *err);
@@ -151,12 +210,14 @@ int cube_writer_open(cube_writer **out, const char *path, int width,
  * (after rounding) is SL_ERANGE and the frame is NOT written. */
 int cube_writer_append(cube_writer *w, const float *frame);
 /* Push header and data to the OS: after this the file on disk is a valid
- * cube of every frame appended (one header rewrite + fill, cheap). */
+ * cube of every frame appended, its CHECKSUM and DATASUM right (one header
+ * rewrite + fill, cheap). */
 int cube_writer_flush(cube_writer *w);
 /* Append a float32 2-D image extension named extname with meta's keywords
- * (meta may be NULL).  Call it after the last frame: once an extension
- * exists cube_writer_append fails with SL_EINVAL (the cube cannot grow
- * past the extension without rewriting the file). */
+ * and the standard header (meta may be NULL: DATE, CREATOR and the sums).
+ * Call it after the last frame: once an extension exists
+ * cube_writer_append fails with SL_EINVAL (the cube cannot grow past the
+ * extension without rewriting the file). */
 int cube_writer_add_image(cube_writer *w, const char *extname,
                           const float *img, int width, int height,
                           const cube_meta *meta_or_NULL);

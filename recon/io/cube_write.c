@@ -1,4 +1,4 @@
-/* cube_write.c - metadata and the streaming FITS cube writer; see cube.h.
+/* cube_write.c - the streaming FITS cube writer; see cube.h.
  *
  * Crash safety: the cube is created with NAXIS3 = 0 and every append first
  * sets NAXIS3 = n+1 and has cfitsio re-derive the HDU's size
@@ -11,151 +11,29 @@
  * after a flush is a valid cube of the frames appended.  Nothing here calls
  * fsync: surviving a power cut as well as a process crash is the caller's
  * choice (and cost).
+ *
+ * Checksums: CHECKSUM and DATASUM are made with the header (so the header
+ * never grows for them later) and brought up to date ("sealed") before
+ * every flush, before an extension and at close.  The cube's DATASUM is
+ * summed frame by frame as frames are appended (datasum.h), so sealing
+ * costs a sum over the header only (fits_update_chksum); fits_write_chksum
+ * would read the whole data unit back at every flush.  Measured, CPU time
+ * for 1000 frames of 256^2 flushed after each frame: 16-bit 0.43 s (0.36 s
+ * without checksums; 27 s with fits_write_chksum at each flush), float
+ * 0.20 s (0.15 s; 59 s).  Image extensions are small and written at once:
+ * fits_write_chksum sums them.
  */
 #include "cube.h"
+#include "cube_header.h"
+#include "datasum.h"
 
-#include <ctype.h>
 #include <errno.h>
 #include <fitsio.h>
-#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
-
-/* ---- metadata ---------------------------------------------------------- */
-
-/* Keywords that describe the HDU's structure, not the observation: never
- * extras (a stale NAXIS3 or DATASUM copied to another file would lie). */
-static int is_structural(const char *key)
-{
-    static const char *const names[] = {
-        "SIMPLE", "BITPIX", "NAXIS", "EXTEND", "BSCALE", "BZERO", "BLANK",
-        "PCOUNT", "GCOUNT", "XTENSION", "EXTNAME", "COMMENT", "HISTORY",
-        "END", "CONTINUE", "CHECKSUM", "DATASUM"};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if (strcmp(key, names[i]) == 0)
-            return 1;
-    if (strncmp(key, "NAXIS", 5) == 0 && key[5] != '\0')
-        return strspn(key + 5, "0123456789") == strlen(key + 5);
-    return 0;
-}
-
-static int is_standard(const char *key)
-{
-    static const char *const names[] = {"DATE-OBS", "EXPTIME", "INSTRUME",
-                                        "OBJECT", "BUNIT", "PLTSCALE",
-                                        "WAVELEN"};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if (strcmp(key, names[i]) == 0)
-            return 1;
-    return 0;
-}
-
-/* Upper-case key into out; 0 when it is not a usable extra name. */
-static int normalise_key(const char *key, char out[CUBE_KEY_MAX])
-{
-    size_t n = key ? strlen(key) : 0;
-    if (n == 0 || n > CUBE_KEY_MAX - 1)
-        return 0;
-    for (size_t i = 0; i <= n; i++)
-        out[i] = (char)toupper((unsigned char)key[i]);
-    if (strspn(out, "ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") != n)
-        return 0;
-    return !is_structural(out) && !is_standard(out);
-}
-
-void cube_meta_init(cube_meta *m)
-{
-    memset(m, 0, sizeof *m);
-    m->exptime_s = NAN;
-    m->plate_scale_arcsec = NAN;
-    m->wavelength_m = NAN;
-}
-
-static cube_kv *find_kv(const cube_meta *m, const char *key)
-{
-    char k[CUBE_KEY_MAX];
-    size_t n = key ? strlen(key) : 0;
-    if (n == 0 || n >= CUBE_KEY_MAX)
-        return NULL;
-    for (size_t i = 0; i <= n; i++)
-        k[i] = (char)toupper((unsigned char)key[i]);
-    for (int i = 0; i < m->nextra; i++)
-        if (strcmp(m->extra[i].key, k) == 0)
-            return (cube_kv *)&m->extra[i];
-    return NULL;
-}
-
-/* The slot for key (existing or new), NULL when the list is full. */
-static cube_kv *slot_kv(cube_meta *m, const char *key)
-{
-    cube_kv *kv = find_kv(m, key);
-    if (kv || m->nextra >= CUBE_META_MAX_EXTRA)
-        return kv;
-    kv = &m->extra[m->nextra++];
-    memset(kv, 0, sizeof *kv);
-    return kv;
-}
-
-static int set_kv(cube_meta *m, const char *key, cube_kv_type type,
-                  double num, const char *str, const char *comment)
-{
-    char k[CUBE_KEY_MAX];
-    if (!m || !normalise_key(key, k))
-        return SL_EINVAL;
-    if (type == CUBE_KV_STR && strlen(str) >= CUBE_STR_MAX)
-        return SL_ERANGE;
-    cube_kv *kv = slot_kv(m, k);
-    if (!kv)
-        return SL_ERANGE;
-    memcpy(kv->key, k, sizeof k);
-    kv->type = type;
-    kv->num = num;
-    snprintf(kv->str, sizeof kv->str, "%s", str ? str : "");
-    snprintf(kv->comment, sizeof kv->comment, "%s", comment ? comment : "");
-    return SL_OK;
-}
-
-int cube_meta_set_num(cube_meta *m, const char *key, double value,
-                      const char *comment)
-{
-    if (!isfinite(value))
-        return SL_EINVAL;
-    return set_kv(m, key, CUBE_KV_NUM, value, NULL, comment);
-}
-
-int cube_meta_set_str(cube_meta *m, const char *key, const char *value,
-                      const char *comment)
-{
-    if (!value)
-        return SL_EINVAL;
-    return set_kv(m, key, CUBE_KV_STR, 0.0, value, comment);
-}
-
-int cube_meta_get_num(const cube_meta *m, const char *key, double *out)
-{
-    const cube_kv *kv = find_kv(m, key);
-    if (!kv)
-        return SL_EINVAL;
-    if (kv->type == CUBE_KV_STR)
-        return SL_EDATA;
-    *out = kv->num;
-    return SL_OK;
-}
-
-int cube_meta_get_str(const cube_meta *m, const char *key, const char **out)
-{
-    const cube_kv *kv = find_kv(m, key);
-    if (!kv)
-        return SL_EINVAL;
-    if (kv->type != CUBE_KV_STR)
-        return SL_EDATA;
-    *out = kv->str;
-    return SL_OK;
-}
 
 /* ---- the writer ------------------------------------------------------- */
 
@@ -170,6 +48,9 @@ struct cube_writer {
     int failed;        /* SL_EIO once a cfitsio call failed: sticky */
     float *rounded;    /* integer bitpix: one frame rounded (cfitsio would
                         * truncate); allocated once at open */
+    unsigned char *stored; /* one frame as the file stores it, for sum */
+    datasum sum;       /* the cube's DATASUM over the frames appended */
+    int sealed;        /* the current HDU's CHECKSUM, DATASUM are right */
     sl_err err;
 };
 
@@ -184,82 +65,6 @@ static int fits_fail(cube_writer *w, const char *what, int st, int os_errno)
     return sl_seterr(&w->err, SL_EIO, "%s: %s failed (cfitsio: %s%s%s)",
                      w->path, what, msg, os_errno ? "; " : "",
                      os_errno ? strerror(os_errno) : "");
-}
-
-/* Shortest %G precision that reads back as v exactly. */
-static int round_trip_digits(double v)
-{
-    char buf[40];
-    for (int d = 1; d < 17; d++) {
-        snprintf(buf, sizeof buf, "%.*G", d, v);
-        if (strtod(buf, NULL) == v)
-            return d;
-    }
-    return 17;
-}
-
-static void put_num(fitsfile *fp, const char *key, double v,
-                    const char *comment, int *st)
-{
-    if (v == floor(v) && fabs(v) < 9.0e15)
-        fits_update_key_lng(fp, key, (LONGLONG)v, comment, st);
-    else
-        fits_update_key_dbl(fp, key, v, -round_trip_digits(v), comment, st);
-}
-
-static void put_str(fitsfile *fp, const char *key, const char *s,
-                    const char *comment, int *st)
-{
-    if (s[0] != '\0')
-        fits_update_key_str(fp, key, s, comment, st);
-}
-
-/* DATE-OBS for "now": ISO-8601 UTC with milliseconds. */
-static void now_iso(char *out, size_t n)
-{
-    struct timespec ts;
-    struct tm tm;
-    char sec[32];
-    clock_gettime(CLOCK_REALTIME, &ts);
-    gmtime_r(&ts.tv_sec, &tm);
-    strftime(sec, sizeof sec, "%Y-%m-%dT%H:%M:%S", &tm);
-    snprintf(out, n, "%s.%03ld", sec, ts.tv_nsec / 1000000L);
-}
-
-/* The standard keywords (when set), then the extras, into the current
- * HDU.  with_date: write DATE-OBS even when meta lacks one (primary). */
-static void put_meta(fitsfile *fp, const cube_meta *m, int with_date,
-                     int *st)
-{
-    char date[CUBE_STR_MAX];
-    if (m && m->date_obs[0])
-        snprintf(date, sizeof date, "%s", m->date_obs);
-    else
-        now_iso(date, sizeof date);
-    if (with_date || (m && m->date_obs[0]))
-        put_str(fp, "DATE-OBS", date, "[UTC] start of the observation", st);
-    if (!m)
-        return;
-    if (isfinite(m->exptime_s))
-        put_num(fp, "EXPTIME", m->exptime_s, "[s] exposure time", st);
-    put_str(fp, "INSTRUME", m->instrume, "instrument / camera", st);
-    put_str(fp, "OBJECT", m->object, "target", st);
-    put_str(fp, "BUNIT", m->bunit, "physical unit of the pixel values", st);
-    if (isfinite(m->plate_scale_arcsec))
-        put_num(fp, "PLTSCALE", m->plate_scale_arcsec,
-                "[arcsec/pixel] plate scale", st);
-    if (isfinite(m->wavelength_m))
-        put_num(fp, "WAVELEN", m->wavelength_m, "[m] wavelength", st);
-    for (int i = 0; i < m->nextra && i < CUBE_META_MAX_EXTRA; i++) {
-        const cube_kv *kv = &m->extra[i];
-        const char *c = kv->comment[0] ? kv->comment : NULL;
-        if (kv->type == CUBE_KV_STR)
-            fits_update_key_str(fp, kv->key, kv->str, c, st);
-        else if (kv->type == CUBE_KV_BOOL)
-            fits_update_key_log(fp, kv->key, kv->num != 0.0, c, st);
-        else
-            put_num(fp, kv->key, kv->num, c, st);
-    }
 }
 
 /* Range of an integer bitpix after cfitsio's round-to-nearest; 0 for the
@@ -296,9 +101,29 @@ static int create_file(cube_writer *w, const cube_meta *meta)
         return fits_fail(w, "create", st, errno);
     }
     fits_create_imgll(w->fp, w->bitpix, w->naxis, naxes, &st);
-    put_meta(w->fp, meta, 1, &st);
+    cube_header_write(w->fp, meta, w->width, w->height, 1, &st);
+    fits_write_chksum(w->fp, &st);
     if (st)
         return fits_fail(w, "writing the header", st, errno);
+    w->sealed = 1;
+    return SL_OK;
+}
+
+/* Bring the current HDU's DATASUM (kept by append) and CHECKSUM (a sum
+ * over the header) up to date. */
+static int seal(cube_writer *w)
+{
+    char v[16];
+    int st = 0;
+    if (w->sealed || w->failed)
+        return w->failed;
+    snprintf(v, sizeof v, "%lu", (unsigned long)datasum_value(&w->sum));
+    errno = 0;
+    fits_modify_key_str(w->fp, "DATASUM", v, "&", &st);
+    fits_update_chksum(w->fp, &st);
+    if (st)
+        return fits_fail(w, "updating CHECKSUM", st, errno);
+    w->sealed = 1;
     return SL_OK;
 }
 
@@ -321,9 +146,12 @@ static int writer_open(cube_writer **out, const char *path, int width,
     w->bitpix = bitpix;
     w->naxis = naxis;
     double lo, hi;
+    size_t npx = (size_t)width * (size_t)height;
     int rc = SL_OK;
-    if (int_range(bitpix, &lo, &hi) &&
-        !(w->rounded = malloc((size_t)width * (size_t)height * sizeof(float))))
+    datasum_init(&w->sum);
+    if ((int_range(bitpix, &lo, &hi) &&
+         !(w->rounded = malloc(npx * sizeof(float)))) ||
+        !(w->stored = malloc(npx * datasum_pixel_bytes(bitpix))))
         rc = sl_seterr(&w->err, SL_ENOMEM, "out of memory for a frame");
     if (rc == SL_OK)
         rc = create_file(w, meta);
@@ -403,6 +231,9 @@ int cube_writer_append(cube_writer *w, const float *frame)
                      (void *)data, &st);
     if (st)
         return fits_fail(w, "appending a frame", st, errno);
+    datasum_add_pixels(&w->sum, data, (size_t)w->width * (size_t)w->height,
+                       w->bitpix, w->stored);
+    w->sealed = 0;
     w->nframes++;
     return SL_OK;
 }
@@ -411,6 +242,8 @@ int cube_writer_flush(cube_writer *w)
 {
     int st = 0, rc = writable(w);
     if (rc != SL_OK)
+        return rc;
+    if ((rc = seal(w)) != SL_OK)
         return rc;
     errno = 0;
     if (fits_flush_file(w->fp, &st))
@@ -429,15 +262,19 @@ int cube_writer_add_image(cube_writer *w, const char *extname,
     if (!extname || !img || width < 1 || height < 1)
         return sl_seterr(&w->err, SL_EINVAL, "%s: bad image extension "
                          "arguments", w->path);
+    if ((rc = seal(w)) != SL_OK)
+        return rc;
     errno = 0;
     fits_create_imgll(w->fp, FLOAT_IMG, 2, naxes, &st);
     fits_update_key_str(w->fp, "EXTNAME", extname, NULL, &st);
-    put_meta(w->fp, meta_or_NULL, 0, &st);
+    cube_header_write(w->fp, meta_or_NULL, width, height, 0, &st);
     fits_write_pixll(w->fp, TFLOAT, first, (LONGLONG)width * height,
                      (void *)img, &st);
+    fits_write_chksum(w->fp, &st);
     w->has_ext = 1;
     if (st)
         return fits_fail(w, "writing extension", st, errno);
+    w->sealed = 1;
     return SL_OK;
 }
 
@@ -449,6 +286,7 @@ int cube_writer_close(cube_writer *w)
     int st = 0;
     if (!w->fp)
         return w->failed;
+    seal(w);
     errno = 0;
     fits_close_file(w->fp, &st);
     w->fp = NULL;
@@ -464,6 +302,7 @@ void cube_writer_free(cube_writer *w)
     if (w->fp)
         cube_writer_close(w);
     free(w->rounded);
+    free(w->stored);
     free(w->path);
     free(w);
 }

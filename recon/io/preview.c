@@ -21,6 +21,14 @@ int preview_stretch_parse(const char *name, preview_stretch *out)
     return SL_EINVAL;
 }
 
+double preview_stretch_curve(preview_stretch stretch, double t)
+{
+    t = t < 0.0 ? 0.0 : t > 1.0 ? 1.0 : t;
+    return stretch == PREVIEW_SQRT ? sqrt(t)
+         : stretch == PREVIEW_ASINH ? asinh(10.0 * t) / asinh(10.0)
+         : t; /* asinh softening = range / 10 */
+}
+
 /* Grey level of v for finite range [lo, lo + range]. */
 static unsigned char grey(float v, double lo, double range,
                           preview_stretch stretch)
@@ -29,12 +37,8 @@ static unsigned char grey(float v, double lo, double range,
         return 0;
     if (!(range > 0.0))
         return 128; /* constant image: see preview.h */
-    double t = ((double)v - lo) / range;
-    t = t < 0.0 ? 0.0 : t > 1.0 ? 1.0 : t;
-    double f = stretch == PREVIEW_SQRT ? sqrt(t)
-             : stretch == PREVIEW_ASINH ? asinh(10.0 * t) / asinh(10.0)
-             : t; /* asinh softening = range / 10 */
-    return (unsigned char)lround(255.0 * f);
+    return (unsigned char)lround(255.0 * preview_stretch_curve(
+                                     stretch, ((double)v - lo) / range));
 }
 
 /* 8-bit rows in PNG order: row r is image y = height - 1 - r (north up). */

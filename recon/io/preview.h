@@ -27,6 +27,10 @@ typedef enum preview_stretch {
 /* "linear", "sqrt" or "asinh" -> *out; SL_EINVAL for anything else. */
 int preview_stretch_parse(const char *name, preview_stretch *out);
 
+/* f(t) of the stretch above for t in [0, 1] (clamped there); the figures
+ * (figure/) draw with the same curves. */
+double preview_stretch_curve(preview_stretch stretch, double t);
+
 /* Write img (width x height, pixel (x, y) = img[y*width + x]) to path,
  * creating or overwriting it.  SL_EINVAL for bad arguments, SL_EIO when the
  * file cannot be written (message names the path), SL_ENOMEM. */

@@ -478,7 +478,8 @@ int pipeline_run(const char *const *paths, int npaths,
     out->height = s.h;
     out->plate_scale_arcsec = cube_reader_meta(s.rd)->plate_scale_arcsec;
     out->elapsed_s = now_s() - t0;
-    if ((rc = pipeline_describe(&eo, cube_reader_meta(s.rd), out, err)) != SL_OK)
+    if ((rc = pipeline_describe(&eo, cube_reader_meta(s.rd), out, err)) != SL_OK ||
+        (rc = pipeline_history(paths, npaths, o, out, err)) != SL_OK)
         pipeline_result_clear(out);
 close_ref:
     if (refp)

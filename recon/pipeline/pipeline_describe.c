@@ -4,6 +4,7 @@
  * Every keyword is counted: a header that cannot hold one (the extras
  * list full, a string too long) is an error naming it, never a key
  * silently dropped.  Strings are cut to a FITS card's 68 characters. */
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -196,11 +197,87 @@ static void binary_keys(keys *k, const pipeline_binary *r)
     closure_keys(k, r);
 }
 
+/* ---- HISTORY: what made the image, as the caller asked for it ---- */
+
+#define HIST_MAX_INPUTS 8   /* inputs named one by one; then a count */
+
+static void hist(keys *k, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void hist(keys *k, const char *fmt, ...)
+{
+    char text[CUBE_HISTORY_MAX];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    if (cube_meta_add_history(k->m, "%s", text) != SL_OK && k->rc == SL_OK) {
+        k->rc = SL_ERANGE;
+        snprintf(k->first, sizeof k->first, "HISTORY");
+    }
+}
+
+static const char *weight_name(int w)
+{
+    static const char *names[] = {"mod", "snr", "unit"};
+    return w >= 0 && w <= 2 ? names[w] : "auto";
+}
+
+/* The options as `specklab recon` names them, requested values (auto's
+ * choice and the defaults resolved are in the keywords). */
+static void options_history(keys *k, const pipeline_opts *o)
+{
+    char skips[64] = "default", text[640];
+    if (o->skips >= 0)
+        pipeline_skips_name(o->skips, skips, sizeof skips);
+    snprintf(text, sizeof text,
+             "method=%s skips=%s target-error=%g projections=%d r2=%d window=%s "
+             "tukey-alpha=%g prep=%d detect=%d learn-badpix=%d recentre=%d "
+             "saturation-adu=%g photons=%g adu-per-photon=%g wiener=%g "
+             "phase-weights=%s refine=%d tsm-inverse=%s tsm-phases=%s "
+             "cutoff-cyc-px=%g binary=%d",
+             pipeline_method_name(o->method), skips, o->target_error, o->nangles,
+             o->r2_px, o->window == POWSPEC_WIN_NONE ? "none" :
+             o->window == POWSPEC_WIN_HANN ? "hann" : "tukey", o->tukey_alpha,
+             o->prep, o->detect, o->learn_badpix, o->recentre, o->saturation_adu,
+             o->photons_per_frame, o->adu_per_photon, o->wiener,
+             weight_name(o->phase_weight), o->refine_iters,
+             o->tsm_inverse == TSM_INV_ITER ? "iter" : "fbp",
+             o->tsm_corrected_phases ? "corrected" : "raw", o->cutoff_cyc_px,
+             o->closure_binary);
+    hist(k, "options: %s", text);
+}
+
+int pipeline_history(const char *const *paths, int npaths,
+                     const pipeline_opts *asked, pipeline_result *r, sl_err *err)
+{
+    keys k = {&r->meta, SL_OK, ""};
+    hist(&k, "reconstruction: %s from %d of %d frames",
+         pipeline_method_name(r->report.method), r->nframes, r->report.nframes_in);
+    for (int i = 0; i < npaths && i < HIST_MAX_INPUTS; i++)
+        hist(&k, "input: %s", paths[i]);
+    if (npaths > HIST_MAX_INPUTS)
+        hist(&k, "input: and %d more, the last %s", npaths - HIST_MAX_INPUTS,
+             paths[npaths - 1]);
+    if (asked->ref_path)
+        hist(&k, "reference: %s", asked->ref_path);
+    if (asked->target_path)
+        hist(&k, "target PSF: %s", asked->target_path);
+    if (asked->badpix_path)
+        hist(&k, "bad-pixel map: %s", asked->badpix_path);
+    options_history(&k, asked);
+    if (k.rc != SL_OK)
+        return sl_seterr(err, k.rc, "the image header cannot hold its HISTORY (%zu "
+                         "bytes of it the input's)", strlen(r->meta.history));
+    return SL_OK;
+}
+
 int pipeline_describe(const pipeline_opts *o, const cube_meta *in,
                       pipeline_result *r, sl_err *err)
 {
     keys k = {&r->meta, SL_OK, ""};
     r->meta = *in;
+    /* Roughly the mean frame's flux (the input's unit) in total, but not
+     * calibrated: apodisation, bias and sky subtraction change it. */
+    snprintf(r->meta.bunit, sizeof r->meta.bunit, "relative flux");
     run_keys(&k, o, r);
     prep_keys(&k, &r->report);
     probe_keys(&k, &r->report.probe);

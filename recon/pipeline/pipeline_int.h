@@ -122,5 +122,11 @@ void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
  * fit. */
 int pipeline_describe(const pipeline_opts *o, const cube_meta *in,
                       pipeline_result *r, sl_err *err);
+/* The image's HISTORY: how it was made (the method that ran, the frames
+ * used), the inputs (paths, reference, target, bad-pixel map) and the
+ * options as asked (`specklab recon`'s names).  SL_ERANGE when it does
+ * not fit beside the input's HISTORY. */
+int pipeline_history(const char *const *paths, int npaths,
+                     const pipeline_opts *asked, pipeline_result *r, sl_err *err);
 
 #endif

@@ -300,12 +300,20 @@ static void body_lossy(tc *t)
           (unsigned long long)st.id_gaps);
 }
 
-/* Kill the camera mid-stream; errors come within a bound; it reconnects. */
+/* Kill the camera mid-stream; errors come within a bound; it reconnects,
+ * with the heartbeat timeout set before (the camera's register reads it
+ * back, and the new camera gets it again). */
 static void body_kill(tc *t)
 {
     session s;
     camera_frame f;
+    int beat0 = -1, beat1 = -1, beat_bad = SL_OK;
     int rc = session_open(&s, 1, 3, 200, 16, NULL, NULL, NULL);
+    if (rc == 0 && (camera_set_heartbeat_ms(s.c, 4000) != SL_OK ||
+                    camera_heartbeat_ms(s.c, &beat0) != SL_OK))
+        rc = -1, snprintf(s.err, sizeof s.err, "%s", camera_errmsg(s.c));
+    if (rc == 0)
+        beat_bad = camera_set_heartbeat_ms(s.c, 50);
     for (int i = 0; rc == 0 && i < 20; i++)
         rc = session_pop(&s, 2000, &f, 0);
     fx_stop(&s.fake, SIGKILL, 5);
@@ -329,6 +337,8 @@ static void body_kill(tc *t)
         for (int i = 0; rc2 == SL_OK && i < 20; i++)
             if ((rc2 = session_pop(&s, 2000, &f, 0)) == SL_OK && f.status == CAMERA_FRAME_SUCCESS)
                 good++, wrong += truth_diff(s.tr, f.frame_id, s.pix) != 0;
+        if (rc2 == SL_OK)
+            camera_heartbeat_ms(s.c, &beat1);
     }
     session_close(&s);
     CHECK(rc == 0, "before the kill: %s", s.err);
@@ -339,6 +349,9 @@ static void body_kill(tc *t)
     CHECK(rc2 == SL_OK, "after reconnect: %s", s.err);
     CHECK(good >= 19 && wrong == 0, "after reconnect %d good frames, %d wrong", good, wrong);
     CHECK(s.st.reconnects == 1, "reconnects %llu", (unsigned long long)s.st.reconnects);
+    CHECK(beat0 == 4000 && beat1 == 4000 && beat_bad == SL_ERANGE,
+          "heartbeat timeout %d ms set, %d after the reconnect; 50 ms: %d", beat0, beat1,
+          beat_bad);
 }
 
 /* Discovery finds our camera; an absent one is a clear, bounded error. */

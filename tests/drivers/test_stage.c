@@ -464,13 +464,20 @@ STAGE_TEST(fault_disconnect, )
     stage *s = fx->s;
     stage_wheel_status st;
     CHECK(stage_status(s, 0, &st) == SL_OK, "%s", stage_errmsg(s));
+    /* A read whose link drops is asked again on a new connection: it
+     * changes nothing at the stage. */
     CHECK(ctl(fx->f.port, FAKE_REG_DISCONNECT_AFTER, 1) == 0, "ctl");
     double t0 = now_s();
     int rc = stage_status(s, 0, &st);
     double dt = now_s() - t0;
-    CHECK(rc == SL_EIO && HAS(stage_errmsg(s), "connection closed by the "
-          "stage (reconnecting)"), "rc %d: %s", rc, stage_errmsg(s));
+    CHECK(rc == SL_OK && st.wheel == 0 && st.slots == 6, "read through a dropped link: "
+          "rc %d: %s", rc, stage_errmsg(s));
     CHECK(dt < CALL_MS * 1e-3 + MARGIN_S, "took %.3f s", dt);
+    /* A command is not: it may have been executed. */
+    CHECK(ctl(fx->f.port, FAKE_REG_DISCONNECT_AFTER, 1) == 0, "ctl");
+    rc = stage_home(s, 0);
+    CHECK(rc == SL_EIO && HAS(stage_errmsg(s), "homing of wheel 0 (screen): connection "
+          "closed by the stage (reconnecting)"), "rc %d: %s", rc, stage_errmsg(s));
     CHECK(stage_status(s, 0, &st) == SL_OK, "no reconnect: %s",
           stage_errmsg(s));
 
@@ -547,6 +554,51 @@ STAGE_TEST(server_restart, )
     CHECK(dt < CALL_MS * 1e-3 + MARGIN_S, "took %.3f s", dt);
     CHECK(stage_home(s, 0) == SL_OK && stage_wait(s, 0, 0) == SL_OK, "%s",
           stage_errmsg(s));
+}
+
+/* The stage restarts between two calls (power-cycled): the handle sees
+ * its connection closed without sending anything, and the next call,
+ * a status read or a command, runs on a new connection. */
+STAGE_TEST(restart_between_calls, )
+{
+    stage *s = fx->s;
+    stage_wheel_status st;
+    char why[512];
+    int port = fx->f.port;
+    CHECK(stage_status(s, 0, &st) == SL_OK && stage_connected(s), "%s", stage_errmsg(s));
+    fake_stop(&fx->f);   /* reaped: its end of the connection is closed */
+    CHECK(!stage_connected(s), "a connection the stage closed is reported connected");
+    CHECK(fake_start(&fx->f, port, NULL, why, sizeof why) == 0, "%s", why);
+    double t0 = now_s();
+    int rc = stage_status(s, 0, &st);
+    double dt = now_s() - t0;
+    note("first status after the restart", dt);
+    CHECK(rc == SL_OK && !st.homed, "first status after a restart: rc %d: %s", rc,
+          stage_errmsg(s));
+    CHECK(dt < CALL_MS * 1e-3 + MARGIN_S, "took %.3f s", dt);
+    fake_stop(&fx->f);
+    CHECK(fake_start(&fx->f, port, NULL, why, sizeof why) == 0, "%s", why);
+    CHECK(stage_home(s, 0) == SL_OK && stage_wait(s, 0, 0) == SL_OK,
+          "first command after a restart: %s", stage_errmsg(s));
+}
+
+/* The stage vanishes mid-move and refuses connections: the wait ends
+ * after one call timeout of silence, not at the move's timeout. */
+STAGE_TEST(wait_on_vanished_stage, "--step-ms", "200",)
+{
+    stage *s = fx->s;
+    CHECK(stage_home(s, 0) == SL_OK && stage_wait(s, 0, 0) == SL_OK, "%s", stage_errmsg(s));
+    CHECK(stage_move(s, 0, 5) == SL_OK, "%s", stage_errmsg(s));
+    fake_stop(&fx->f);
+    double t0 = now_s();
+    int rc = stage_wait(s, 0, 10000);
+    double dt = now_s() - t0;
+    note("wait on a vanished stage, to its error", dt);
+    CHECK(rc == SL_EIO && HAS(stage_errmsg(s), "move of wheel 0 (screen) to slot 5 not "
+          "confirmed: no answer from the stage for") &&
+              HAS(stage_errmsg(s), "Connection refused"),
+          "rc %d: %s", rc, stage_errmsg(s));
+    CHECK(dt < CALL_MS * 1e-3 + MARGIN_S, "took %.3f s for a %d ms call bound", dt, CALL_MS);
 }
 
 STAGE_TEST(wrong_device, "--magic", "0x1234",)
@@ -662,5 +714,6 @@ STAGE_TEST(mbpoll_map, "--step-ms", "30",)
 TC_MAIN(TC_CASE(home_move_status), TC_CASE(map_refusals), TC_CASE(fault_busy),
         TC_CASE(fault_stall), TC_CASE(fault_slow_reply),
         TC_CASE(fault_disconnect), TC_CASE(fault_code),
-        TC_CASE(server_restart), TC_CASE(wrong_device), TC_CASE(backends),
+        TC_CASE(server_restart), TC_CASE(restart_between_calls),
+        TC_CASE(wait_on_vanished_stage), TC_CASE(wrong_device), TC_CASE(backends),
         TC_CASE(mbpoll_map))

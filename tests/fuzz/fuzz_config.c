@@ -57,7 +57,8 @@ static void check_values(const config *c, const char *path)
             "roi", path);
     require(in(c->buffers, 2, 1024) && in(c->plate_scale_arcsec, 1e-6, 1e3) &&
                 in(c->wavelength_m, 100e-9 * (1 - 1e-12), 30000e-9 * (1 + 1e-12)) &&
-                in(c->lost_timeout_s, 0.5, 3600) && c->max_failed_frames >= 0,
+                in(c->lost_timeout_s, 0.5, 3600) && c->max_failed_frames >= 0 &&
+                in(c->heartbeat_timeout_ms, 500, 600000),
             "camera numbers", path);
     require((isnan(c->gain_e_per_adu) || in(c->gain_e_per_adu, 1e-4, 1e4)) &&
                 (isnan(c->read_noise_e) || in(c->read_noise_e, 0, 1e4)),
@@ -106,7 +107,8 @@ static void check_values(const config *c, const char *path)
         g_free(canon);
     }
     require(config_method_valid(c->reconstruct) && in(c->projections, 0, 4096) &&
-                in(c->max_clients, 1, 4096) && (c->fftw_measure == 0 || c->fftw_measure == 1) &&
+                in(c->max_clients, 1, 4096) && in(c->client_idle_timeout_ms, 100, 86400000) &&
+                (c->fftw_measure == 0 || c->fftw_measure == 1) &&
                 (c->tsm_corrected_phases == 0 || c->tsm_corrected_phases == 1) &&
                 in(c->skips, 0, 15),
             "daemon values", path);

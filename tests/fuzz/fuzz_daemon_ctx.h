@@ -405,7 +405,8 @@ static void fz_setup(void)
     FZ.d.started_us = g_get_monotonic_time();
     /* As main.c: the main thread owns the default context throughout. */
     g_main_context_acquire(g_main_context_default());
-    if (server_new(&FZ.d.srv, FZ.cfg.socket, FZ.cfg.max_clients, dispatch_request, &FZ.d,
+    if (server_new(&FZ.d.srv, FZ.cfg.socket, FZ.cfg.max_clients,
+                   FZ.cfg.client_idle_timeout_ms, dispatch_request, &FZ.d,
                    &e) != SL_OK)
         fz_die("server_new", e.msg);
     fz_seed();

@@ -127,11 +127,19 @@ static void model(req *r, const char *line, size_t len)
     JsonObject *o = json_node_get_object(r->root);
     JsonNode *id = json_object_get_member(o, "id"), *cmd = json_object_get_member(o, "cmd");
     JsonNode *args = json_object_get_member(o, "args");
-    if (is_int(id)) {
+    /* A number json-glib misreads (beyond gint64, or not JSON's) is
+     * refused naming it; an id of that kind is not echoed. */
+    proto_badnum bn;
+    int nums_ok = proto_numbers_ok(line, len, &bn);
+    if (is_int(id) && !bn.top_id) {
         r->has_id = 1;
         r->id = json_node_get_int(id);
     } else if (id && !JSON_NODE_HOLDS_NULL(id)) {
-        r->bad = "id", r->code = "bad-request";
+        r->bad = bn.top_id ? g_intern_string(bn.literal) : "id", r->code = "bad-request";
+        return;
+    }
+    if (!nums_ok) {   /* interned: the req is copied, the literal must outlive it */
+        r->bad = g_intern_string(bn.literal), r->code = "bad-request";
         return;
     }
     if (!is_str(cmd)) {

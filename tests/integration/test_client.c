@@ -11,7 +11,9 @@
  *   silent   no reply at all
  *   close    closes the connection
  *   garbage  a line that is not JSON
- * so each test drives the stub with its requests alone.
+ * so each test drives the stub with its requests alone.  A second stub
+ * (serve_busy) plays a daemon with every slot taken: it sends the `busy`
+ * line and closes before reading anything.
  */
 #include <errno.h>
 #include <pthread.h>
@@ -170,7 +172,22 @@ static void *serve(void *arg)
     return NULL;
 }
 
-static int stub_start(stub *s)
+/* A daemon at max_clients: the busy line, then the close, request unread. */
+static void *serve_busy(void *arg)
+{
+    stub *s = arg;
+    static const char busy[] = "{\"id\":null,\"ok\":false,\"error\":{\"code\":\"busy\","
+                               "\"message\":\"too many clients (max_clients = 64); try "
+                               "later\"}}\n";
+    int fd = accept(s->lfd, NULL, NULL);
+    if (fd >= 0) {
+        send_all(fd, busy, sizeof busy - 1);
+        close(fd);
+    }
+    return NULL;
+}
+
+static int stub_start_with(stub *s, void *(*fn)(void *))
 {
     memset(s, 0, sizeof *s);
     snprintf(s->dir, sizeof s->dir, "/tmp/test_client.XXXXXX");
@@ -183,7 +200,12 @@ static int stub_start(stub *s)
     if (s->lfd < 0 || bind(s->lfd, (struct sockaddr *)&sa, sizeof sa) < 0 ||
         listen(s->lfd, 4) < 0)
         return -1;
-    return pthread_create(&s->th, NULL, serve, s) == 0 ? 0 : -1;
+    return pthread_create(&s->th, NULL, fn, s) == 0 ? 0 : -1;
+}
+
+static int stub_start(stub *s)
+{
+    return stub_start_with(s, serve);
 }
 
 /* The client must be freed first: the stub serves until EOF. */
@@ -357,6 +379,30 @@ TEST(closed_connection_and_garbage_are_errors)
     CHECK(rc_e == SL_EIO && ev == NULL, "event after close: rc %d", rc_e);
 }
 
+/* The daemon refused the connection and closed it before the request was
+ * sent (the stub's thread has ended: joined before the call): the send
+ * meets a broken pipe, and the client reports the daemon's busy line. */
+TEST(refused_before_the_request_is_sent)
+{
+    stub s;
+    client *c = NULL;
+    sl_err e = {0};
+    CHECK(stub_start_with(&s, serve_busy) == 0, "stub");
+    int rc_conn = client_connect(&c, s.path, 2000, &e);
+    pthread_join(s.th, NULL);
+    JsonObject *res = NULL;
+    int rc = rc_conn == SL_OK ? client_call(c, "status", NULL, 5000, &res) : rc_conn;
+    char msg[SL_ERRMSG_MAX], code[32];
+    snprintf(msg, sizeof msg, "%s", c ? client_errmsg(c) : e.msg);
+    snprintf(code, sizeof code, "%s", c && client_errcode(c) ? client_errcode(c) : "");
+    client_free(c);
+    close(s.lfd);
+    unlink(s.path);
+    rmdir(s.dir);
+    CHECK(rc == CLIENT_EREMOTE && !strcmp(code, "busy") && strstr(msg, "too many clients"),
+          "rc %d, code '%s': %s", rc, code, msg);
+}
+
 TEST(oversized_request_refused_locally)
 {
     stub s;
@@ -433,5 +479,6 @@ TC_MAIN(TC_CASE(echo_matches_id_and_args), TC_CASE(pipelined_replies_matched_by_
         TC_CASE(events_interleaved_with_replies_are_kept_in_order),
         TC_CASE(large_reply_spanning_many_reads), TC_CASE(error_reply_carries_code_and_message),
         TC_CASE(no_reply_times_out), TC_CASE(closed_connection_and_garbage_are_errors),
+        TC_CASE(refused_before_the_request_is_sent),
         TC_CASE(oversized_request_refused_locally), TC_CASE(daemon_not_running),
         TC_CASE(socket_path_default_and_env))

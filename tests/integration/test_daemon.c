@@ -363,9 +363,14 @@ BENCH_TEST(bad_requests, 60, NULL, "[daemon]\nmax_clients=3\n")
     JsonNode *more = keep(b, dc_read(c, 5));
     CHECK(!more && c->eof, "connection still open after too-large: %s", jtext(more));
     /* Nothing changed, and the daemon still serves others, up to
-     * max_clients at once: one more is told "busy" and let go. */
+     * max_clients at once: with every slot held by a subscriber (an idle
+     * connection would make room: test_daemon_clients), one more is told
+     * "busy" and let go. */
     dc *d2 = bench_client(b), *d3 = bench_client(b), *d4 = bench_client(b);
     CHECK(d2 && d3 && d4, "cannot connect after the bad requests");
+    dc *subs[] = {d2, d3, d4};
+    for (int i = 0; i < 3; i++)
+        CHECK(jok(keep(b, dc_call(subs[i], "subscribe", NULL, 5))), "subscribe %d", i);
     r = keep(b, dc_call(d3, "status", NULL, 5));
     CHECK(jok(r) && ji(r, "result.clients") == 3, "status: %s", jtext(r));
     dc *d5 = bench_client(b);

@@ -34,7 +34,19 @@
  *   stage_restart_during_move
  *                           the stage process is killed and restarted
  *                           mid-move: the run fails naming the stage, the
- *                           next one homes the new stage and completes.
+ *                           next one homes the new stage and completes;
+ *   stage_restart_between_runs
+ *                           the stage is restarted (power-cycled) between
+ *                           two runs: `status` stops reporting the old
+ *                           connection, and the next run is done, also
+ *                           when started right after the restart;
+ *   stage_gone_during_move  the stage is killed mid-move and stays away:
+ *                           the run fails after the call timeout's silence,
+ *                           not at the 15 s move timeout;
+ *   camera_control_lost     the camera drops the daemon's control mid-run
+ *                           (as when its heartbeat timeout runs out on a
+ *                           busy host): the daemon takes it back and the run
+ *                           ends done, every frame the camera's own.
  */
 #include "daemon_fx.h"
 #include "matrix_fx.h"
@@ -383,8 +395,95 @@ BENCH_TEST(stage_restart_during_move, 90, slow_wheels, NULL)
     mx_next_run_done(t, b, c);
 }
 
+/* The stage in `status`: connected or not. */
+static int stage_is(JsonNode *r, const void *arg)
+{
+    JsonNode *m = jget(r, "result.stage.connected");
+    return m && JSON_NODE_HOLDS_VALUE(m) && json_node_get_boolean(m) == *(const int *)arg;
+}
+
+BENCH_TEST(stage_restart_between_runs, 90, NULL, NULL)
+{
+    dc *c = bench_client(b);
+    char port[16];
+    const int yes = 1, no = 0;
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    mx_next_run_done(t, b, c);
+    if (t->failed)
+        return;
+    CHECK(mx_poll_status(b, c, stage_is, &yes, 5), "the stage not connected after a run");
+    fx_stop(&b->stage, SIGKILL, 5);
+    snprintf(port, sizeof port, "%d", b->port);
+    const char *again[] = {"--port", port, NULL};
+    CHECK(bench_start_stage(b, again) == 0, "the stage did not restart on port %s", port);
+    JsonNode *r = mx_poll_status(b, c, stage_is, &no, 5);
+    CHECK(r && strstr(mx_str(js(r, "result.stage.error")), "closed by the stage"),
+          "status still reports the restarted stage's old connection: %s", jtext(r));
+    /* The first run after the restart: the new stage, not homed, is homed. */
+    mx_next_run_done(t, b, c);
+    if (t->failed)
+        return;
+    /* Again, the run started at once (before the daemon's idle check can
+     * have seen the restart): its first request finds the link closed. */
+    fx_stop(&b->stage, SIGKILL, 5);
+    CHECK(bench_start_stage(b, again) == 0, "the stage did not restart on port %s", port);
+    mx_next_run_done(t, b, c);
+}
+
+BENCH_TEST(stage_gone_during_move, 90, slow_wheels, "[stage]\nmove_timeout_ms=15000\n")
+{
+    dc *c = bench_client(b);
+    char uuid[40];
+    CHECK(c, "cannot connect");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    CHECK(mx_start(b, c, "{\"screen\": 4, \"mask\": 1, \"frames\": 10, \"reconstruct\": "
+                   "\"none\"}", uuid) == 0, "start-run");
+    mx_want w = {.run = uuid, .state = "moving"};
+    CHECK(mx_poll_status(b, c, mx_is_current, &w, 20) &&
+              mx_wheel_moving(b->port, STAGE_WHEEL_SCREEN, 4, 20) == 0, "never moving");
+    fx_stop(&b->stage, SIGKILL, 5);
+    double t0 = fx_now();
+    JsonNode *e = mx_wait_end(b, c, uuid, 30, NULL);
+    double dt = fx_now() - t0;
+    CHECK(e && !g_strcmp0(js(e, "state"), "failed") &&
+              strstr(mx_str(js(e, "reason")), "no answer from the stage"),
+          "stage gone: %s", jtext(e));
+    /* The call timeout (2 s) of silence, then the stage's state noted. */
+    CHECK(dt < 6, "failed %.1f s after the stage went (move timeout 15 s)", dt);
+    mx_seen v;
+    if (mx_check_run(t, b, uuid, CATALOG_FAILED, "stage", &v))
+        return;
+    CHECK(v.frames == 0 && !v.file[0], "%d frames, file '%s'", v.frames, v.file);
+}
+
+/* ---- the camera ----------------------------------------------------------------- */
+
+BENCH_TEST(camera_control_lost, 90, NULL, "[camera]\nlost_timeout_s=10\n")
+{
+    dc *c = bench_client(b);
+    char uuid[40];
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    CHECK(mx_start(b, c, "{\"screen\": 3, \"mask\": 0, \"frames\": 600, \"reconstruct\": "
+                   "\"none\"}", uuid) == 0, "start-run");
+    gint64 told = dc_wait_progress(c, uuid, 100, 30);
+    CHECK(told >= 100, "no progress to 100 frames");
+    CHECK(kill(b->cam.pid, SIGUSR1) == 0, "SIGUSR1 to the fake camera: %s", strerror(errno));
+    JsonNode *e = mx_wait_end(b, c, uuid, 60, NULL);
+    CHECK(e && !g_strcmp0(js(e, "state"), "done"), "end after the camera dropped control: %s",
+          jtext(e));
+    mx_seen v;
+    if (mx_check_run(t, b, uuid, CATALOG_DONE, NULL, &v) || mx_check_frames(t, b, &v))
+        return;
+    CHECK(v.frames == 600, "%d frames", v.frames);
+    CHECK(mx_log_has(b, "taking the camera back") && mx_log_has(b, "camera back after"),
+          "the daemon's log does not say it took the camera back");
+}
+
 TC_MAIN(TC_CASE(sigkill_moving), TC_CASE(sigkill_acquiring),
         TC_CASE(sigkill_stored_and_reconstructing), TC_CASE(catalog_locked_briefly),
         TC_CASE(catalog_locked_long), TC_CASE(catalog_locked_at_stop),
         TC_CASE(packet_loss_1pct), TC_CASE(packet_loss_10pct), TC_CASE(packet_loss_over_limit),
-        TC_CASE(stage_busy_during_move), TC_CASE(stage_restart_during_move))
+        TC_CASE(stage_busy_during_move), TC_CASE(stage_restart_during_move),
+        TC_CASE(stage_restart_between_runs), TC_CASE(stage_gone_during_move),
+        TC_CASE(camera_control_lost))

@@ -39,10 +39,16 @@
  * on the 2-core development machine, so it runs flat out; the daemon
  * needs ~0.7 ms of CPU per frame.
  *
+ * Then the load phase (soak_load.c): SOAK_LOAD_FRAMES (1000) acquired
+ * while the daemon and a separate `specklab recon` both reconstruct the
+ * long run with TSM and SOAK_LOAD_HOGS (1) processes spin; the run is
+ * checked like the others (no frame lost, every gap accounted for).
+ *
  * Environment: SOAK_LONG_FRAMES, SOAK_RUNS, SOAK_SHORT_FRAMES,
  * SOAK_WARM_RUNS, SOAK_RATE_HZ (camera frame rate, default 200),
  * SOAK_EXPOSURE_US (1000), SOAK_SIZE (sensor, 128), SOAK_RSS_BOUND_MB,
- * SOAK_LONG_RECON, SOAK_BUFFERS (the daemon's [camera] buffers; default:
+ * SOAK_LONG_RECON, SOAK_LOAD_FRAMES (0: no load phase), SOAK_LOAD_HOGS,
+ * SOAK_LOAD_PROJECTIONS, SOAK_BUFFERS (the daemon's [camera] buffers; default:
  * the daemon's), SOAK_CONF_EXTRA (more configuration lines, e.g.
  * $'[paths]\ncatalog=/elsewhere/x.db'); SL_KEEP_TMP=1 keeps the bench
  * directory.
@@ -96,6 +102,9 @@ static void opts_load(soak_opts *o)
     snprintf(o->size, sizeof o->size, "%s", v && *v ? v : "128");
     v = getenv("SOAK_LONG_RECON");   /* "": the daemon's default */
     snprintf(o->long_method, sizeof o->long_method, "%s", v && *v ? v : "");
+    o->load_frames = env_int("SOAK_LOAD_FRAMES", 1000, 0, 100000);
+    o->load_hogs = env_int("SOAK_LOAD_HOGS", 1, 0, 64);
+    o->load_projections = env_int("SOAK_LOAD_PROJECTIONS", 720, 1, 4096);
 }
 
 /* ---- the daemon as /proc sees it ------------------------------------------ */
@@ -208,7 +217,7 @@ static int terminal(const char *state)
  * SAMPLE_S and printing a progress line every REPORT_S.  State events
  * update the runs; a terminal one is followed by a sample ("after each
  * run").  0, or -1 when until passed. */
-static int pump(soak *s, double until)
+int soak_pump(soak *s, double until)
 {
     double now = fx_now();
     if (now >= until)
@@ -258,7 +267,7 @@ static int pump(soak *s, double until)
     return 0;
 }
 
-static int submit(soak *s, int screen, int mask, int frames, const char *method)
+int soak_submit(soak *s, int screen, int mask, int frames, const char *method)
 {
     char args[256];
     int n = snprintf(args, sizeof args, "{\"screen\": %d, \"mask\": %d, \"frames\": %d, "
@@ -284,12 +293,13 @@ static int submit(soak *s, int screen, int mask, int frames, const char *method)
     return (int)(run - s->runs);
 }
 
-/* Pump until run i has left acquisition (stored or an end); -1 on time. */
-static int wait_stored(soak *s, int i, double timeout_s)
+/* Pump until run i has left acquisition (stored or an end); -1 on time
+ * (soak.h). */
+int soak_wait_stored(soak *s, int i, double timeout_s)
 {
     double until = fx_now() + timeout_s;
     while (!(s->runs[i].t_stored > 0))
-        if (pump(s, until) != 0)
+        if (soak_pump(s, until) != 0)
             return -1;
     return 0;
 }
@@ -298,7 +308,7 @@ static int wait_all_done(soak *s, double timeout_s)
 {
     double until = fx_now() + timeout_s;
     while (s->ndone < s->nruns)
-        if (pump(s, until) != 0)
+        if (soak_pump(s, until) != 0)
             return -1;
     return 0;
 }
@@ -345,7 +355,7 @@ static void soak_sequence(soak *s)
     printf("soak: long run, %d frames of %s at %g Hz (reconstruct: %s)\n", o->long_frames,
            o->size, o->rate_hz, o->long_method[0] ? o->long_method : "the daemon's default");
     fflush(stdout);
-    int i = submit(s, 1, 0, o->long_frames, o->long_method[0] ? o->long_method : NULL);
+    int i = soak_submit(s, 1, 0, o->long_frames, o->long_method[0] ? o->long_method : NULL);
     if (i < 0 || wait_all_done(s, long_limit + (s->runs[0].reconstructs ? 600 : 0)) != 0) {
         soak_problem(s, "the long run did not end within its bound (state %s)",
                      i < 0 ? "-" : s->runs[i].state);
@@ -365,8 +375,8 @@ static void soak_sequence(soak *s)
         }
         /* Consecutive runs never share a slot pair: the stage moves (a
          * screen swap) before every run; 6 screens x 2 masks cycle. */
-        i = submit(s, k % 6, (k / 6) % 2, o->short_frames, NULL);
-        if (i < 0 || wait_stored(s, i, short_limit) != 0) {
+        i = soak_submit(s, k % 6, (k / 6) % 2, o->short_frames, NULL);
+        if (i < 0 || soak_wait_stored(s, i, short_limit) != 0) {
             soak_problem(s, "short run %d did not leave acquisition within %.0f s (state %s)",
                          k, short_limit, i < 0 ? "-" : s->runs[i].state);
             return;
@@ -378,6 +388,11 @@ static void soak_sequence(soak *s)
     }
     if (wait_all_done(s, 600) != 0 || wait_idle(s, &s->end, 120) != 0)
         soak_problem(s, "the short runs did not all end (%d of %d)", s->ndone, s->nruns);
+    /* After the idle end point: the load does not blur the RSS and
+     * descriptor comparison. */
+    soak_load(s);
+    if (wait_all_done(s, 600) != 0)
+        soak_problem(s, "the load run did not end (%d of %d)", s->ndone, s->nruns);
 }
 
 /* The daemon's log lines of GLib warnings or worse: reported, and a
@@ -406,8 +421,10 @@ static void summary(soak *s, double elapsed_s, int daemon_exit)
     double acq_s = lr && lr->t_acq > 0 && lr->t_full > lr->t_acq ? lr->t_full - lr->t_acq : NAN;
     double growth_mb = (s->end.rss_kb - s->base.rss_kb) / 1024.0;
     printf("\n==== soak summary ====\n");
-    printf("runs       %d (1 x %d frames + %d x %d frames), %d done\n", s->nruns,
-           o->long_frames, s->nruns - 1, o->short_frames, s->ndone);
+    int nload = s->load.run >= 0;
+    printf("runs       %d (1 x %d frames + %d x %d frames%s), %d done\n", s->nruns,
+           o->long_frames, s->nruns - 1 - nload, o->short_frames,
+           nload ? " + the load run" : "", s->ndone);
     printf("frames     requested %ld, in cubes %ld, catalogued %ld, lost %ld; damaged %ld, "
            "id gaps %ld (accounted %s)\n", s->f.requested, s->f.naxis3, s->f.catalogued,
            s->f.lost, s->f.damaged, s->f.gaps, s->f.gaps_unaccounted ? "NO" : "yes");
@@ -428,6 +445,18 @@ static void summary(soak *s, double elapsed_s, int daemon_exit)
                                               "sha256 equal");
     printf("daemon     exit %d on SIGTERM; %d warning lines in its log\n", daemon_exit,
            s->log_warnings);
+    if (s->load.run >= 0) {
+        const soak_run *r = &s->runs[s->load.run];
+        printf("load       %d frames in %.1f s while the daemon reconstructed the long run "
+               "(tsm, %d angles; %s at the last frame; %s), `specklab recon` did too (%s at "
+               "the last frame%s) and %d CPU hog%s spun: the machine's 1-min load average "
+               "up to %.2f on %ld CPUs; run %s\n", r->frames, s->load.acq_s,
+               o->load_projections, s->load.recon_spanned ? "still running" : "ENDED",
+               s->load.recon_ok ? "done" : "FAILED",
+               s->load.external_spanned ? "still running" : "ENDED",
+               s->load.external_ok ? "" : ", FAILED", s->load.hogs, s->load.hogs == 1 ? "" : "s",
+               s->load.loadavg_max, sysconf(_SC_NPROCESSORS_ONLN), r->state);
+    }
     printf("elapsed    %.0f s (%.1f frames/s overall)\n", elapsed_s,
            s->f.naxis3 / elapsed_s);
     if (s->nproblems)
@@ -448,6 +477,7 @@ int main(void)
         return 2;
     }
     s->problems = g_string_new(NULL);
+    s->load.run = -1;
     s->peak.rss_kb = s->peak.fds = -1;
     s->t0 = s->t_report = fx_now();
     if (bench_start(s) != 0) {

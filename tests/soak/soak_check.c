@@ -227,9 +227,9 @@ static void check_run(soak *s, catalog *cat, const soak_run *r, int k, GHashTabl
     recon_files rf = {expected, 0};
     if (catalog_recon_list(cat, r->uuid, on_recon, &rf) != SL_OK)
         soak_problem(s, "run %d %.8s: reconstructions: %s", k, r->uuid, catalog_errmsg(cat));
-    else if (rf.rows != (r->reconstructs ? 1 : 0))
+    else if (rf.rows != r->reconstructs)
         soak_problem(s, "run %d %.8s: %d reconstruction rows, expected %d", k, r->uuid, rf.rows,
-                     r->reconstructs ? 1 : 0);
+                     r->reconstructs);
     s->disk.recon_rows += rf.rows;
     catalog_run_clear(&cr);
 }

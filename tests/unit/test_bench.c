@@ -1,7 +1,7 @@
 /* test_bench.c - the benchmark helpers: Pareto front, the Gaussian
  * high-pass, scores against a known image, a measured child run that
  * reproduces the in-process result, blind cubes and their sidecars, the
- * fitted gain, the binary verdict's errors, and the chart canvas. */
+ * fitted gain and the binary verdict's errors (the chart: tests/figure). */
 #include <fitsio.h>
 #include <stdlib.h>
 #include <unistd.h>
@@ -11,7 +11,6 @@
 #include "io/cube.h"
 #include "measure/metrics.h"
 #include "pipeline/pipeline.h"
-#include "bench/plot.h"
 #include "tcheck.h"
 
 TEST(pareto_front_is_the_non_dominated_set)
@@ -303,30 +302,9 @@ TEST(verdict_errors_take_the_pa_modulo_180_only_when_ambiguous)
           "no binary in the truth: %g", ds);
 }
 
-TEST(canvas_draws_clips_and_measures_text)
-{
-    sl_err e = {0};
-    CHECK(plot_new(8, 8, &e) == NULL && e.code == SL_EINVAL, "tiny canvas accepted");
-    plot *p = plot_new(64, 32, &e);
-    CHECK(p, "%s", e.msg);
-    const float *px = plot_pixels(p);
-    plot_line(p, -100, 5, 500, 5, 0, 1);  /* clipped, not a crash */
-    plot_marker(p, 10, 20, PLOT_SQUARE, 1, 2, 0.5f);
-    int w = plot_text(p, 30, 10, "A1", 0, 1);
-    int ok = w == plot_text_width("A1", 1) && w == 12 && px[5 * 64 + 0] == 0 &&
-             px[5 * 64 + 63] == 0 && px[20 * 64 + 10] == 0.5f &&
-             px[6 * 64 + 0] == 1 && plot_text_height(2) == 16;
-    /* 'A' has its top row 01110: (31..33, 10 + 7). */
-    ok = ok && px[17 * 64 + 31] == 0 && px[17 * 64 + 30] == 1;
-    plot_free(p);
-    plot_free(NULL);
-    CHECK(ok, "canvas pixels or text metrics wrong");
-}
-
 TC_MAIN(TC_CASE(pareto_front_is_the_non_dominated_set),
         TC_CASE(highpass_removes_constants_and_keeps_fine_detail),
         TC_CASE(measure_in_a_child_and_score),
         TC_CASE(blind_cube_and_its_sidecar),
         TC_CASE(fitted_gain_keeps_the_peak_in_range),
-        TC_CASE(verdict_errors_take_the_pa_modulo_180_only_when_ambiguous),
-        TC_CASE(canvas_draws_clips_and_measures_text))
+        TC_CASE(verdict_errors_take_the_pa_modulo_180_only_when_ambiguous))

@@ -252,8 +252,8 @@ quick: all
 # camera-like matrix's quick subset (~20 s; the whole of it: bench --blind).
 bench: all
 	@mkdir -p out/bench
-	@bin/specklab bench --quick --csv out/bench/quick.csv --png out/bench/quick.png \
-	    && bin/specklab bench --speed --csv out/bench/speed.csv --png out/bench/speed.png \
+	@bin/specklab bench --quick --overwrite --csv out/bench/quick.csv --png out/bench/quick.png \
+	    && bin/specklab bench --speed --overwrite --csv out/bench/speed.csv --png out/bench/speed.png \
 	    && bin/specklab bench --blind --quick --csv out/bench/blind-quick.csv
 
 # The numerical-stability suite with its slow cases too.

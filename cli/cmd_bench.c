@@ -36,18 +36,11 @@
 
 #include "bench_blind.h"
 #include "bench_cli.h"
+#include "bench_ctx.h"
+#include "outfile.h"
 #include "pipeline/pipeline.h"
 #include "tsm/tsm.h"
 
-typedef struct bench_args {
-    gboolean quick, paper, speed, skips_report, estimate, keep_data, blind;
-    char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
-    char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
-    char *conditions;
-    int repeat, threads;
-    gint64 seed;
-    double interval_ms;   /* 0: the simulator's */
-} bench_args;
 
 /* One Cartesian sweep, in the option syntax. */
 typedef struct sweep {
@@ -81,22 +74,8 @@ static const sweep default_sweeps[] = {
 };
 
 typedef bcli_config config;
-
-typedef struct refset {
-    int w, h, n;
-    double photons;
-    char *cube, *psf;
-} refset;
-
-struct bcli_ctx {
-    const bench_args *a;
-    char *dir;
-    GArray *rows;      /* bcli_row */
-    GArray *refs;      /* refset */
-    int ndata;         /* data sets simulated (file names) */
-    int failures;
-};
 typedef bcli_ctx ctx;
+
 
 /* ---- option lists ---- */
 
@@ -154,172 +133,6 @@ static int parse_configs(const sweep *sw, GArray *out)
     g_array_free(tg, TRUE);
     g_array_free(sk, TRUE);
     return rc;
-}
-
-/* ---- data sets ---- */
-
-/* The cached point-source reference (and cophased PSF) for a geometry. */
-static const refset *get_ref(ctx *c, int w, int h, int n, double photons)
-{
-    for (guint i = 0; i < c->refs->len; i++) {
-        refset *r = &g_array_index(c->refs, refset, i);
-        if (r->w == w && r->h == h && r->n == n && r->photons == photons)
-            return r;
-    }
-    refset r = {w, h, n, photons, NULL, NULL};
-    r.cube = g_strdup_printf("%s/ref-%dx%d-%d-%g.fits", c->dir, w, h, n, photons);
-    r.psf = g_strdup_printf("%s/psf-%dx%d-%d-%g.fits", c->dir, w, h, n, photons);
-    bench_sim s;
-    bench_sim_defaults(&s);
-    s.scene = "point";
-    s.width = w;
-    s.height = h;
-    s.nframes = n;
-    s.photons = photons;
-    s.seed = (uint64_t)c->a->seed + 1000;
-    s.frame_interval_s = c->a->interval_ms * 1e-3;
-    sl_err e = {0};
-    fprintf(stderr, "bench: simulating the reference, %dx%d, %d frames, %g "
-            "photons\n", w, h, n, photons);
-    if (bench_sim_write(&s, r.cube, r.psf, &e) != SL_OK) {
-        fprintf(stderr, "specklab bench: reference: %s\n", e.msg);
-        g_free(r.cube);
-        g_free(r.psf);
-        return NULL;
-    }
-    g_array_append_val(c->refs, r);
-    return &g_array_index(c->refs, refset, c->refs->len - 1);
-}
-
-static int same_point(const bcli_row *a, const bench_sim *d, const config *cf)
-{
-    return !strcmp(a->scene, d->scene) && a->width == d->width &&
-           a->height == d->height && a->frames == d->nframes &&
-           a->photons == d->photons && a->sep_lod == d->sep_lod &&
-           a->dm_mag == d->dm_mag && a->method == cf->method &&
-           a->ref == cf->ref && a->skips == cf->skips && a->target == cf->target &&
-           a->inverse == cf->inverse &&
-           a->inject == d->bad_frames && a->oversample == d->oversample &&
-           (cf->method == PIPE_DIRECT ? a->r2 : a->nangles) == cf->param;
-}
-
-static void measure_one(ctx *c, const bench_sim *d, const char *cube,
-                        const refset *ref, const bench_truth *truth,
-                        const bench_score *mfloor, const config *cf, int block,
-                        float *img)
-{
-    const bench_args *a = c->a;
-    bcli_row r;
-    memset(&r, 0, sizeof r);
-    snprintf(r.scene, sizeof r.scene, "%s", d->scene);
-    r.width = d->width;
-    r.height = d->height;
-    r.frames = d->nframes;
-    r.photons = d->photons;
-    r.sep_lod = d->sep_lod;
-    r.pa_deg = d->pa_deg;
-    r.dm_mag = d->dm_mag;
-    r.method = cf->method;
-    r.ref = cf->ref;
-    r.skips = cf->skips;
-    r.target = cf->target;
-    r.inverse = cf->inverse;
-    r.inject = d->bad_frames;
-    r.oversample = d->oversample;
-    r.repeat = a->repeat;
-    r.threads = a->threads;
-    r.block = block;
-    r.floor = *mfloor;
-    pipeline_opts o;
-    pipeline_opts_defaults(&o);
-    o.method = cf->method;
-    if (cf->method == PIPE_DIRECT)
-        o.r2_px = r.r2 = cf->param;
-    else
-        o.nangles = r.nangles = cf->param;
-    o.skips = cf->skips;
-    o.target_error = cf->target;
-    o.tsm_inverse = cf->inverse;
-    o.nthreads = a->threads;
-    o.fftw_measure = !a->estimate;
-    o.closure_binary = block == 2; /* the paper binaries: closure fits too */
-    if (cf->ref) {
-        o.ref_path = ref->cube;
-        o.target_path = ref->psf;
-    }
-    sl_err e = {0};
-    r.status = bench_measure(cube, &o, a->repeat, img, d->width, d->height,
-                             &r.t, &e);
-    bench_score_init(&r.s);
-    if (r.status == SL_OK)
-        r.status = bench_score_image(img, truth, BENCH_HP_SIGMA_PX, &r.s, &e);
-    if (r.status != SL_OK) {
-        snprintf(r.msg, sizeof r.msg, "%s", e.msg);
-        c->failures++;
-    }
-    bcli_print_row(&r);
-    g_array_append_val(c->rows, r);
-}
-
-/* Simulate one data set and measure every configuration on it. */
-int bcli_run_dataset(ctx *c, const bench_sim *d, const config *cf, int ncf,
-                     int block)
-{
-    int need_ref = 0, todo = 0;
-    for (int i = 0; i < ncf; i++) {
-        int dup = 0;
-        for (guint k = 0; k < c->rows->len && !dup; k++)
-            dup = same_point(&g_array_index(c->rows, bcli_row, k), d, &cf[i]);
-        todo += !dup;
-        need_ref |= !dup && cf[i].ref;
-    }
-    if (!todo)
-        return 0;
-    const refset *ref = need_ref ? get_ref(c, d->width, d->height, d->nframes,
-                                           d->photons) : NULL;
-    if (need_ref && !ref)
-        return 1;
-    char *cube = g_strdup_printf("%s/data-%03d-%s.fits", c->dir, c->ndata++,
-                                 d->scene);
-    sl_err e = {0};
-    bench_truth truth = {0};
-    float *img = malloc(sizeof(float) * (size_t)d->width * (size_t)d->height);
-    fprintf(stderr, "bench: simulating %s, %dx%d, %d frames, %g photons%s%s\n",
-            d->scene, d->width, d->height, d->nframes, d->photons,
-            d->bad_frames ? ", bad frames injected" : "",
-            d->oversample > 1 ? ", oversampled" : "");
-    bench_sim dt = *d;
-    dt.frame_interval_s = c->a->interval_ms * 1e-3;
-    int rc = !img ? sl_seterr(&e, SL_ENOMEM, "out of memory")
-                  : bench_sim_write(&dt, cube, NULL, &e);
-    bench_score mfloor;
-    if (rc == SL_OK)
-        rc = bench_truth_read(&truth, cube, &e);
-    if (rc == SL_OK)
-        rc = bench_score_image(truth.cophased, &truth, BENCH_HP_SIGMA_PX,
-                               &mfloor, &e);
-    if (rc == SL_OK && truth.binary)
-        printf("# %s %g/%g %dx%d: metrics_binary on the cophased image itself "
-               "(the metric's floor): dsep %+.3f px, dPA %+.2f deg, ddm %+.3f\n",
-               d->scene, d->sep_lod, d->dm_mag, d->width, d->height,
-               mfloor.sep_err_px, mfloor.pa_err_deg, mfloor.dm_err_mag);
-    if (rc != SL_OK) {
-        fprintf(stderr, "specklab bench: %s\n", e.msg);
-        c->failures++;
-    }
-    for (int i = 0; i < ncf && rc == SL_OK; i++) {
-        int dup = 0;
-        for (guint k = 0; k < c->rows->len && !dup; k++)
-            dup = same_point(&g_array_index(c->rows, bcli_row, k), d, &cf[i]);
-        if (!dup)
-            measure_one(c, d, cube, ref, &truth, &mfloor, &cf[i], block, img);
-    }
-    bench_truth_clear(&truth);
-    free(img);
-    if (!c->a->keep_data)
-        g_unlink(cube);
-    g_free(cube);
-    return rc == SL_OK ? 0 : 1;
 }
 
 static int run_sweep(ctx *c, const sweep *sw)
@@ -476,8 +289,58 @@ static void cleanup(ctx *c)
         g_rmdir(c->dir);
 }
 
+static const char *csv_path(const bench_args *a) { return a->csv ? a->csv : "bench.csv"; }
+static const char *png_path(const bench_args *a) { return a->png ? a->png : "bench.png"; }
+
+/* The CSV and the chart follow outfile.h: checked before anything runs
+ * (a refusal after minutes of measuring would waste them), then written
+ * through a temporary (write_outputs). */
+static int outputs_ok(const bench_args *a)
+{
+    const char *path[] = {csv_path(a), png_path(a)};
+    for (int i = 0; i < 2; i++) {
+        GError *ge = NULL;
+        if (strcmp(path[i], "none") && !outfile_check(path[i], a->overwrite, NULL, 0, &ge)) {
+            fprintf(stderr, "specklab bench: %s\n", ge->message);
+            g_error_free(ge);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 0, or 1 after a message. */
+static int write_outputs(const bench_args *a, GArray *rows, double base_rss_mb)
+{
+    const char *path[] = {csv_path(a), png_path(a)};
+    int bad = 0;
+    for (int i = 0; i < 2; i++) {
+        if (!strcmp(path[i], "none"))
+            continue;
+        outfile f;
+        GError *ge = NULL;
+        if (!outfile_begin(&f, path[i], a->overwrite, NULL, 0, &ge)) {
+            fprintf(stderr, "specklab bench: %s\n", ge->message);
+            g_error_free(ge);
+            bad = 1;
+            continue;
+        }
+        int rc = i == 0 ? bcli_write_csv(f.tmp, rows, base_rss_mb) : bcli_write_png(f.tmp, rows);
+        if (rc == 0 && !outfile_commit(&f, &ge)) {
+            fprintf(stderr, "specklab bench: %s\n", ge->message);
+            g_error_free(ge);
+            rc = 1;
+        }
+        outfile_clear(&f);
+        bad |= rc != 0;
+    }
+    return bad;
+}
+
 static int bench_main(bench_args *a)
 {
+    if (!outputs_ok(a))
+        return 2;
     ctx c = {a, NULL, NULL, NULL, 0, 0};
     GError *gerr = NULL;
     if (a->dir) {
@@ -518,12 +381,7 @@ static int bench_main(bench_args *a)
     if (a->skips_report)
         bcli_print_skips(c.rows);
     fflush(stdout);
-    const char *csv = a->csv ? a->csv : "bench.csv";
-    const char *png = a->png ? a->png : "bench.png";
-    if (strcmp(csv, "none") && bcli_write_csv(csv, c.rows, base))
-        out = 1;
-    if (strcmp(png, "none") && bcli_write_png(png, c.rows))
-        out = 1;
+    out = write_outputs(a, c.rows, base);
     if (a->catalog && bcli_write_catalog(a->catalog, c.rows, base))
         out = 1;
     if (c.failures)
@@ -578,6 +436,7 @@ int cmd_bench(int argc, char **argv)
         {"frame-interval-ms", 0, 0, G_OPTION_ARG_DOUBLE, &a.interval_ms, "time between simulated frames (default 10: 100 frames share 10 m of screen)", "MS"},
         {"estimate", 0, 0, G_OPTION_ARG_NONE, &a.estimate, "FFTW_ESTIMATE plans instead of FFTW_MEASURE", NULL},
         {"csv", 0, 0, G_OPTION_ARG_FILENAME, &a.csv, "CSV output (default bench.csv; none: skip)", "FILE"},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace an existing CSV or chart", NULL},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "time/error chart (default bench.png; none: skip)", "FILE"},
         {"catalog", 0, 0, G_OPTION_ARG_FILENAME, &a.catalog, "also add rows to this catalogue's benchmarks table", "DB"},
         {"data-dir", 0, 0, G_OPTION_ARG_FILENAME, &a.dir, "simulate into DIR and keep the cubes (default: a temporary directory)", "DIR"},

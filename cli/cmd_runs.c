@@ -121,6 +121,34 @@ static void print_run_detail(JsonObject *r)
     }
 }
 
+/* The filters of `runs list` into args; 0 after a usage error. */
+static int list_args(JsonObject *args, const char *state, const char *screen,
+                     const char *since, int limit)
+{
+    if (state)
+        json_object_set_string_member(args, "state", state);
+    if (screen)
+        json_object_set_string_member(args, "screen", screen);
+    if (limit < 0 || limit > 100000) {
+        fprintf(stderr, "specklab runs: --limit %d: expected 1..100000\n", limit);
+        return 0;
+    }
+    if (limit > 0)
+        json_object_set_int_member(args, "limit", limit);
+    if (since) {
+        GError *ge = NULL;
+        char *iso = dcmd_since_iso(since, &ge);
+        if (!iso) {
+            fprintf(stderr, "specklab runs: %s\n", ge->message);
+            g_error_free(ge);
+            return 0;
+        }
+        json_object_set_string_member(args, "since", iso);
+        g_free(iso);
+    }
+    return 1;
+}
+
 int cmd_runs(int argc, char **argv)
 {
     dcmd_opts o = {0};
@@ -148,31 +176,10 @@ int cmd_runs(int argc, char **argv)
                         "[--since DATE] [--limit N] | specklab runs show RUN-ID\n");
         goto free_args;
     }
-    if (show) {
+    if (show)
         json_object_set_string_member(args, "run", argv[2]);
-    } else {
-        if (state)
-            json_object_set_string_member(args, "state", state);
-        if (screen)
-            json_object_set_string_member(args, "screen", screen);
-        if (limit < 0 || limit > 100000) {
-            fprintf(stderr, "specklab runs: --limit %d: expected 1..100000\n", limit);
-            goto free_args;
-        }
-        if (limit > 0)
-            json_object_set_int_member(args, "limit", limit);
-        if (since) {
-            GError *ge = NULL;
-            char *iso = dcmd_since_iso(since, &ge);
-            if (!iso) {
-                fprintf(stderr, "specklab runs: %s\n", ge->message);
-                g_error_free(ge);
-                goto free_args;
-            }
-            json_object_set_string_member(args, "since", iso);
-            g_free(iso);
-        }
-    }
+    else if (!list_args(args, state, screen, since, limit))
+        goto free_args;
     status = 1;
     if (!(c = dcmd_connect(&o, "specklab runs")) ||
         dcmd_call(c, "specklab runs", show ? "run" : "runs", args, DCMD_QUERY_MS, &res))

@@ -16,7 +16,7 @@ DRV_PKGS   := aravis-0.8 libusb-1.0 libmodbus glib-2.0
 CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
-DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3
+DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libsystemd
 FIG_PKGS   := cairo fontconfig
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -364,6 +364,8 @@ fuzz-build: $(FUZZ_BIN)
 fuzz: deps
 	@$(MAKE) --no-print-directory fuzz-build
 	@tests/fuzz/run $(FUZZ_BUILD) $(FUZZ_SECS)
+
+include mk/install.mk
 
 clean:
 	rm -rf build build-asan build-fuzz bin

@@ -67,7 +67,12 @@ const char *client_socket_path(const char *path)
     if (path && *path)
         return path;
     const char *env = getenv("SPECKLAB_SOCKET");
-    return env && *env ? env : CLIENT_DEFAULT_SOCKET;
+    if (env && *env)
+        return env;
+    /* the system daemon (the unit's socket) when there is one, else a
+     * daemon started from a source tree */
+    return access(CLIENT_SYSTEM_SOCKET, F_OK) == 0 ? CLIENT_SYSTEM_SOCKET
+                                                   : CLIENT_DEFAULT_SOCKET;
 }
 
 static int unreachable(sl_err *e, const char *path, int errnum)

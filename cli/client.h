@@ -42,6 +42,10 @@ enum {
     CLIENT_EREMOTE = -32
 };
 
+/* The system daemon's socket: the unit's RuntimeDirectory and the
+ * installed configuration (make install) say the same. */
+#define CLIENT_SYSTEM_SOCKET "/run/specklab/specklabd.sock"
+/* A daemon started in a source tree (make demo, bin/specklabd). */
 #define CLIENT_DEFAULT_SOCKET "./var/specklabd.sock"
 /* The daemon refuses longer request lines (PROTOCOL.md): refuse them here
  * first, with a message naming the size. */
@@ -52,7 +56,8 @@ enum {
 typedef struct client client;
 
 /* The socket to use: path when non-empty, else $SPECKLAB_SOCKET when set
- * and non-empty, else CLIENT_DEFAULT_SOCKET.  Never NULL. */
+ * and non-empty, else CLIENT_SYSTEM_SOCKET when it exists, else
+ * CLIENT_DEFAULT_SOCKET.  Never NULL. */
 const char *client_socket_path(const char *path);
 
 /* Connect within timeout_ms (a full listen backlog is retried until then;

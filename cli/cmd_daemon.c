@@ -15,7 +15,7 @@ void dcmd_opts_add(dcmd_opts *o, GOptionContext *ctx)
 {
     GOptionEntry e[3] = {
         {"socket", 0, 0, G_OPTION_ARG_FILENAME, &o->socket,
-         "specklabd control socket (default $SPECKLAB_SOCKET, else " CLIENT_DEFAULT_SOCKET ")", "PATH"},
+         "specklabd control socket (default $SPECKLAB_SOCKET, else " CLIENT_SYSTEM_SOCKET " when it exists, else " CLIENT_DEFAULT_SOCKET ")", "PATH"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &o->json, "print JSON on one line", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     memcpy(o->entries, e, sizeof e);

@@ -5,6 +5,7 @@
 #include "cli.h"
 #include "cmd_daemon.h"
 #include "jsonmode.h"
+#include "base/version.h"
 #include "base/wisdom.h"
 
 typedef struct command {
@@ -51,10 +52,12 @@ static int run_with_wisdom(const command *c, int argc, char **argv)
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: specklab COMMAND [OPTIONS]   (specklab COMMAND --help)\n\n"
-               "commands:\n");
+    fprintf(f, "Usage: specklab COMMAND [OPTION]...\n"
+               "  or:  specklab --version\n"
+               "Each command's options: specklab COMMAND --help\n\n"
+               "Commands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
+        fprintf(f, "  %-12s %s\n", commands[i].name, commands[i].summary);
 }
 
 int main(int argc, char **argv)
@@ -66,6 +69,10 @@ int main(int argc, char **argv)
     if (!strcmp(argv[1], "help") || !strcmp(argv[1], "--help") ||
         !strcmp(argv[1], "-h")) {
         usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("specklab %s\n", SPECKLAB_VERSION);
         return 0;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {

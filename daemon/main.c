@@ -40,6 +40,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <systemd/sd-daemon.h>
+
+#include "base/version.h"
 #include "cubefile.h"
 #include "dispatch.h"
 #include "framelog.h"
@@ -49,7 +52,7 @@
 
 typedef struct opts {
     char *config, *socket, *data_dir;
-    gboolean foreground, quiet, print_defaults;
+    gboolean foreground, quiet, print_defaults, version;
 } opts;
 
 static int parse_opts(int argc, char **argv, opts *o)
@@ -62,13 +65,15 @@ static int parse_opts(int argc, char **argv, opts *o)
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &o->quiet, "log warnings only", NULL},
         {"print-defaults", 0, 0, G_OPTION_ARG_NONE, &o->print_defaults,
          "print the built-in configuration and exit", NULL},
+        {"version", 0, 0, G_OPTION_ARG_NONE, &o->version, "print the version and exit", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("- the specklab bench daemon");
     GError *ge = NULL;
     g_option_context_add_main_entries(ctx, entries, NULL);
     g_option_context_set_description(ctx,
         "Serves daemon/PROTOCOL.md on a Unix socket (mode 0660, the daemon's group).\n"
-        "Prints 'READY socket=PATH' once serving.  SIGTERM/SIGINT stop it cleanly.");
+        "Prints 'READY socket=PATH' once serving, and tells systemd (Type=notify)\n"
+        "when started by it.  SIGTERM/SIGINT stop it cleanly.");
     int ok = g_option_context_parse(ctx, &argc, &argv, &ge);
     if (!ok)
         fprintf(stderr, "specklabd: %s (try --help)\n", ge->message);
@@ -290,6 +295,11 @@ int main(int argc, char **argv)
     if ((status = parse_opts(argc, argv, &o)) != 0)
         goto free_opts;
     status = 1;
+    if (o.version) {
+        printf("specklabd %s\n", SPECKLAB_VERSION);
+        status = 0;
+        goto free_opts;
+    }
     if (o.print_defaults) {
         fputs(config_defaults_text(), stdout);
         status = 0;
@@ -328,6 +338,9 @@ int main(int argc, char **argv)
     g_unix_signal_add(SIGINT, on_signal, loop);
     printf("READY socket=%s\n", cfg.socket);
     fflush(stdout);
+    /* systemd Type=notify: ready only now that the socket answers; a
+     * no-op without NOTIFY_SOCKET (started by hand or by a test). */
+    sd_notifyf(0, "READY=1\nSTATUS=serving %s", cfg.socket);
     g_message("serving %s; data %s; catalogue %s", cfg.socket, cfg.data_dir, cfg.catalog);
     if (ready_fd >= 0) {
         if (write(ready_fd, "R", 1) != 1)
@@ -337,6 +350,7 @@ int main(int argc, char **argv)
     }
     g_main_loop_run(loop);
     status = 0;
+    sd_notify(0, "STOPPING=1\nSTATUS=stopping: the current run ends with its frames kept");
 stop:
     server_stop_listening(d.srv);
     runner_stop(d.run);

@@ -253,7 +253,9 @@ quick: all
 bench: all
 	@mkdir -p out/bench
 	@bin/specklab bench --quick --overwrite --csv out/bench/quick.csv --png out/bench/quick.png \
+	    --md out/bench/quick.md \
 	    && bin/specklab bench --speed --overwrite --csv out/bench/speed.csv --png out/bench/speed.png \
+	    --md out/bench/speed.md \
 	    && bin/specklab bench --blind --quick --csv out/bench/blind-quick.csv
 
 # The numerical-stability suite with its slow cases too.

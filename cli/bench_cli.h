@@ -93,6 +93,9 @@ void bcli_print_auto(GArray *rows);
 
 int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb);
 int bcli_write_png(const char *path, GArray *rows);
+/* The streamed table in Markdown (bench_md.c): the command that wrote it,
+ * then one row per point, as in the CSV. */
+int bcli_write_md(const char *path, GArray *rows, const char *command);
 /* Rows into the catalogue's benchmarks table (schema/catalog.h). */
 int bcli_write_catalog(const char *path, GArray *rows, double base_rss_mb);
 

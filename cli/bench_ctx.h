@@ -13,7 +13,8 @@ typedef struct bench_args {
     gboolean quick, paper, speed, skips_report, estimate, keep_data, blind, overwrite;
     char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
     char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
-    char *conditions;
+    char *conditions, *md;
+    char *command;        /* the command line, for --md's heading */
     int repeat, threads;
     gint64 seed;
     double interval_ms;   /* 0: the simulator's */

@@ -373,7 +373,7 @@ int bcli_write_csv(const char *path, GArray *rows, double base_rss_mb)
     if (bad)
         fprintf(stderr, "specklab bench: writing %s failed\n", path);
     else
-        fprintf(stderr, "bench: wrote %s (%u rows)\n", path, rows->len);
+        fprintf(stderr, "bench: CSV of %u rows\n", rows->len);
     return bad;
 }
 
@@ -490,7 +490,7 @@ int bcli_write_png(const char *path, GArray *rows)
     else if (chart_write_png(path, &d, &e) != SL_OK)
         rc = fprintf(stderr, "specklab bench: %s\n", e.msg) > 0;
     else
-        fprintf(stderr, "bench: wrote %s (%d panels, %d series)\n", path, np, cs->n);
+        fprintf(stderr, "bench: chart of %d panels, %d series\n", np, cs->n);
     free(pts);
     free(cs);
     return rc;

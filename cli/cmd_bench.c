@@ -291,20 +291,26 @@ static void cleanup(ctx *c)
 
 static const char *csv_path(const bench_args *a) { return a->csv ? a->csv : "bench.csv"; }
 static const char *png_path(const bench_args *a) { return a->png ? a->png : "bench.png"; }
+static const char *md_path(const bench_args *a) { return a->md ? a->md : "none"; }
 
-/* The CSV and the chart follow outfile.h: checked before anything runs
- * (a refusal after minutes of measuring would waste them), then written
- * through a temporary (write_outputs). */
+/* The CSV, the chart and the Markdown table follow outfile.h: checked
+ * before anything runs (a refusal after minutes of measuring would waste
+ * them), then written through a temporary (write_outputs). */
 static int outputs_ok(const bench_args *a)
 {
-    const char *path[] = {csv_path(a), png_path(a)};
-    for (int i = 0; i < 2; i++) {
+    const char *path[] = {csv_path(a), png_path(a), md_path(a)};
+    for (int i = 0; i < 3; i++) {
         GError *ge = NULL;
         if (strcmp(path[i], "none") && !outfile_check(path[i], a->overwrite, NULL, 0, &ge)) {
             fprintf(stderr, "specklab bench: %s\n", ge->message);
             g_error_free(ge);
             return 0;
         }
+        for (int k = 0; k < i; k++)
+            if (strcmp(path[i], "none") && !strcmp(path[i], path[k])) {
+                fprintf(stderr, "specklab bench: %s is named for two outputs\n", path[i]);
+                return 0;
+            }
     }
     return 1;
 }
@@ -312,9 +318,9 @@ static int outputs_ok(const bench_args *a)
 /* 0, or 1 after a message. */
 static int write_outputs(const bench_args *a, GArray *rows, double base_rss_mb)
 {
-    const char *path[] = {csv_path(a), png_path(a)};
+    const char *path[] = {csv_path(a), png_path(a), md_path(a)};
     int bad = 0;
-    for (int i = 0; i < 2; i++) {
+    for (int i = 0; i < 3; i++) {
         if (!strcmp(path[i], "none"))
             continue;
         outfile f;
@@ -325,11 +331,17 @@ static int write_outputs(const bench_args *a, GArray *rows, double base_rss_mb)
             bad = 1;
             continue;
         }
-        int rc = i == 0 ? bcli_write_csv(f.tmp, rows, base_rss_mb) : bcli_write_png(f.tmp, rows);
-        if (rc == 0 && !outfile_commit(&f, &ge)) {
+        int rc = i == 0 ? bcli_write_csv(f.tmp, rows, base_rss_mb)
+               : i == 1 ? bcli_write_png(f.tmp, rows)
+                        : bcli_write_md(f.tmp, rows, a->command);
+        /* the chart writes nothing when no data set has 3 points */
+        int wrote = rc == 0 && g_file_test(f.tmp, G_FILE_TEST_EXISTS);
+        if (wrote && !outfile_commit(&f, &ge)) {
             fprintf(stderr, "specklab bench: %s\n", ge->message);
             g_error_free(ge);
             rc = 1;
+        } else if (wrote) {
+            fprintf(stderr, "bench: wrote %s\n", path[i]);
         }
         outfile_clear(&f);
         bad |= rc != 0;
@@ -404,8 +416,25 @@ static int run_blind(const bench_args *a)
                     a->paper || a->speed || a->skips_report || a->scenes ||
                     a->sizes || a->frames || a->photons || a->projections ||
                     a->r2 || a->seps || a->dms || a->ref || a->skips ||
-                    a->catalog || a->png || a->interval_ms > 0};
+                    a->catalog || a->png || a->md || a->interval_ms > 0};
     return blind_run(&o);
+}
+
+/* "specklab bench ARGS" as typed (GOption reorders argv: taken before
+ * parsing), arguments quoted for the shell where they need it. */
+static char *command_line(int argc, char **argv)
+{
+    GString *s = g_string_new("specklab bench");
+    for (int i = 1; i < argc; i++) {
+        const char *v = argv[i];
+        gboolean plain = *v != 0;
+        for (const char *p = v; *p && plain; p++)
+            plain = g_ascii_isalnum(*p) || strchr("-_.,/=:+@%", *p);
+        char *q = plain ? g_strdup(v) : g_shell_quote(v);
+        g_string_append_printf(s, " %s", q);
+        g_free(q);
+    }
+    return g_string_free(s, FALSE);
 }
 
 int cmd_bench(int argc, char **argv)
@@ -436,8 +465,9 @@ int cmd_bench(int argc, char **argv)
         {"frame-interval-ms", 0, 0, G_OPTION_ARG_DOUBLE, &a.interval_ms, "time between simulated frames (default 10: 100 frames share 10 m of screen)", "MS"},
         {"estimate", 0, 0, G_OPTION_ARG_NONE, &a.estimate, "FFTW_ESTIMATE plans instead of FFTW_MEASURE", NULL},
         {"csv", 0, 0, G_OPTION_ARG_FILENAME, &a.csv, "CSV output (default bench.csv; none: skip)", "FILE"},
-        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace an existing CSV or chart", NULL},
+        {"overwrite", 0, 0, G_OPTION_ARG_NONE, &a.overwrite, "replace an existing CSV, chart or Markdown table", NULL},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &a.png, "time/error chart (default bench.png; none: skip)", "FILE"},
+        {"md", 0, 0, G_OPTION_ARG_FILENAME, &a.md, "also the table as Markdown, headed by this command (default: none)", "FILE"},
         {"catalog", 0, 0, G_OPTION_ARG_FILENAME, &a.catalog, "also add rows to this catalogue's benchmarks table", "DB"},
         {"data-dir", 0, 0, G_OPTION_ARG_FILENAME, &a.dir, "simulate into DIR and keep the cubes (default: a temporary directory)", "DIR"},
         {"blind", 0, 0, G_OPTION_ARG_NONE, &a.blind, "camera-like blind cubes, one factor at a time, default options (with --quick: 4 conditions, < 1 min; CSV default out/bench/blind.csv)", NULL},
@@ -453,6 +483,7 @@ int cmd_bench(int argc, char **argv)
         "point-source sequence (seed + 1000) and its cophased image as --target.\n"
         "Any selection option replaces the preset's sweeps by one sweep.");
     int status = 2;
+    a.command = command_line(argc, argv);
     if (!cli_parse(ctx_, &argc, &argv))
         goto free_ctx;
     if (argc > 1) {
@@ -480,6 +511,6 @@ free_ctx:
     g_free(a.methods); g_free(a.projections); g_free(a.r2); g_free(a.ref);
     g_free(a.seps); g_free(a.dms); g_free(a.targets); g_free(a.skips);
     g_free(a.csv); g_free(a.png); g_free(a.catalog); g_free(a.dir);
-    g_free(a.conditions);
+    g_free(a.conditions); g_free(a.md); g_free(a.command);
     return status;
 }

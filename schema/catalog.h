@@ -182,6 +182,19 @@ int catalog_mask_list(catalog *c, catalog_mask_fn fn, void *user);
 
 /* ---- runs ---- */
 
+/* What a run's frames are for (003_run_kind.sql says how each is used). */
+typedef enum catalog_kind {
+    CATALOG_KIND_ANY = 0,      /* only a filter value */
+    CATALOG_SCIENCE,
+    CATALOG_DARK,
+    CATALOG_FLAT,
+    CATALOG_CALIBRATOR
+} catalog_kind;
+/* "science", ...; NULL for CATALOG_KIND_ANY or out of range. */
+const char *catalog_kind_name(catalog_kind k);
+/* SL_OK, or SL_EINVAL for a name that is not a kind. */
+int catalog_kind_parse(const char *name, catalog_kind *out);
+
 typedef struct catalog_run_spec {
     const char *uuid;                 /* NULL: a random (v4) uuid */
     int64_t created_ms;               /* <= 0: now */
@@ -192,6 +205,7 @@ typedef struct catalog_run_spec {
     const char *camera_serial;        /* NULL: unknown */
     const char *camera_settings_json; /* exposure_us, gain, roi, ...; NULL */
     int frames_requested;             /* >= 0 */
+    catalog_kind kind;                /* CATALOG_KIND_ANY: science */
 } catalog_run_spec;
 
 typedef struct catalog_run {
@@ -216,6 +230,7 @@ typedef struct catalog_run {
     int64_t packets_missing;
     char *file_path;
     char *file_sha256;                /* 64 lowercase hex digits, or NULL */
+    catalog_kind kind;
 } catalog_run;
 typedef int (*catalog_run_fn)(const catalog_run *r, void *user);
 
@@ -224,6 +239,7 @@ typedef struct catalog_run_filter {
     int64_t screen_id;   /* 0: every screen */
     int64_t since_ms;    /* created at or after; 0: ever */
     int limit;           /* 0: no limit */
+    catalog_kind kind;   /* CATALOG_KIND_ANY: every kind */
 } catalog_run_filter;
 
 /* Insert a run in state 'queued'; uuid_out (may be NULL) receives its uuid
@@ -258,6 +274,15 @@ int catalog_run_resolve(catalog *c, const char *prefix,
 /* Newest first; filter NULL: every run. */
 int catalog_run_list(catalog *c, const catalog_run_filter *filter,
                      catalog_run_fn fn, void *user);
+/* The calibration run for run `uuid`: of kind `kind`, done, with a cube,
+ * from the same camera (serial) with the same pixel format and region of
+ * interest; for a dark the same exposure_us too, for a calibrator the same
+ * screen and mask; of those the nearest in time (darks drift with
+ * temperature, seeing with the hour).  SL_OK with its uuid in
+ * uuid_out, SL_EEND when there is none (not an error: calibration is
+ * optional), SL_EINVAL for an unknown run. */
+int catalog_run_find_calibration(catalog *c, const char *uuid, catalog_kind kind,
+                                 char uuid_out[CATALOG_UUID_LEN + 1]);
 /* On daemon start: every run in a non-terminal state becomes 'interrupted'
  * with reason "daemon restarted while <state>".  Returns how many (>= 0) or
  * a negative SL_E*. */

@@ -41,6 +41,10 @@ static int run_from_row(catalog *c, sqlite3_stmt *st, catalog_run *r)
     r->packets_missing = cat_col_int64(st, 18);
     r->file_path = (char *)cat_col_text(st, 19);
     r->file_sha256 = (char *)cat_col_text(st, 20);
+    const char *kind = cat_col_text(st, 21);
+    if (catalog_kind_parse(kind, &r->kind) != SL_OK)
+        return cat_seterr(c, SL_EFORMAT, "catalogue %s: run %s has unknown "
+                          "kind '%s'", c->path, r->uuid, kind ? kind : "");
     return SL_OK;
 }
 
@@ -51,6 +55,9 @@ int catalog_run_insert(catalog *c, const catalog_run_spec *spec,
     int rc;
     if (!spec)
         return cat_seterr(c, SL_EINVAL, "catalog_run_insert: no spec");
+    if (spec->kind != CATALOG_KIND_ANY && !catalog_kind_name(spec->kind))
+        return cat_seterr(c, SL_EINVAL, "catalogue %s: %d is not a run kind",
+                          c->path, (int)spec->kind);
     if (spec->uuid) {
         rc = cat_uuid_norm(c, spec->uuid, id);
         if (rc != SL_OK)
@@ -71,6 +78,7 @@ int catalog_run_insert(catalog *c, const catalog_run_spec *spec,
     cat_bind_text(st, 7, spec->camera_serial);
     cat_bind_text(st, 8, spec->camera_settings_json);
     sqlite3_bind_int(st, 9, spec->frames_requested);
+    cat_bind_text(st, 10, catalog_kind_name(spec->kind ? spec->kind : CATALOG_SCIENCE));
     rc = cat_insert(c, st, what, NULL);
     if (rc != SL_OK && c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
         rc = cat_seterr(c, SL_EINVAL,
@@ -335,8 +343,40 @@ int catalog_run_list(catalog *c, const catalog_run_filter *f,
     cat_bind_id(st, 2, f->screen_id);
     sqlite3_bind_int64(st, 3, f->since_ms > 0 ? f->since_ms : INT64_MIN);
     sqlite3_bind_int(st, 4, f->limit > 0 ? f->limit : -1);
+    cat_bind_text(st, 5, catalog_kind_name(f->kind));
     run_each e = {fn, user};
     return cat_each(c, st, "listing runs", run_row, &e);
+}
+
+int catalog_run_find_calibration(catalog *c, const char *uuid, catalog_kind kind,
+                                 char uuid_out[CATALOG_UUID_LEN + 1])
+{
+    char id[CATALOG_UUID_LEN + 1], state[32], what[96];
+    const char *name = catalog_kind_name(kind);
+    if (!name || kind == CATALOG_SCIENCE)
+        return cat_seterr(c, SL_EINVAL, "catalogue %s: %d is not a calibration "
+                          "kind", c->path, (int)kind);
+    int rc = cat_uuid_norm(c, uuid, id);
+    if (rc != SL_OK)
+        return rc;
+    snprintf(what, sizeof what, "finding a %s for run %s", name, id);
+    if ((rc = run_state(c, id, state, sizeof state, what)) != SL_OK)
+        return rc;
+    sqlite3_stmt *st = cat_stmt(c, CS_RUN_CALIBRATION);
+    cat_bind_text(st, 1, id);
+    cat_bind_text(st, 2, name);
+    rc = sqlite3_step(st);
+    int status = SL_OK;
+    if (rc == SQLITE_ROW) {
+        const char *u = cat_col_text(st, 0);
+        snprintf(uuid_out, CATALOG_UUID_LEN + 1, "%s", u ? u : "");
+    } else if (rc == SQLITE_DONE) {
+        status = SL_EEND;
+    } else {
+        status = cat_sqlerr(c, rc, what);
+    }
+    cat_done(st);
+    return status;
 }
 
 int catalog_runs_mark_interrupted(catalog *c)

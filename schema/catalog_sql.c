@@ -12,7 +12,7 @@
     "r.ended_ms, r.updated_ms, r.operator, r.object, r.screen_id, s.name, "  \
     "r.mask_id, m.name, r.camera_serial, r.camera_settings_json, "           \
     "r.frames_requested, r.frames_acquired, r.frames_failed, "               \
-    "r.packets_missing, r.file_path, r.file_sha256 "                         \
+    "r.packets_missing, r.file_path, r.file_sha256, r.kind "                 \
     "FROM runs AS r LEFT JOIN screens AS s ON s.id = r.screen_id "           \
     "LEFT JOIN masks AS m ON m.id = r.mask_id "
 
@@ -67,8 +67,8 @@ const char *const cat_sql[CS_COUNT] = {
     [CS_RUN_INSERT] =
         "INSERT INTO runs (uuid, created_ms, updated_ms, operator, object, "
         "screen_id, mask_id, camera_serial, camera_settings_json, "
-        "frames_requested) VALUES (?1, ?2, ?2, coalesce(?3, ''), "
-        "coalesce(?4, ''), ?5, ?6, ?7, ?8, ?9)",
+        "frames_requested, kind) VALUES (?1, ?2, ?2, coalesce(?3, ''), "
+        "coalesce(?4, ''), ?5, ?6, ?7, ?8, ?9, ?10)",
     [CS_RUN_EXISTS] = "SELECT 1 FROM runs WHERE uuid = ?1",
     [CS_RUN_STATE] = "SELECT state FROM runs WHERE uuid = ?1",
     [CS_TRANSITION_OK] =
@@ -96,7 +96,25 @@ const char *const cat_sql[CS_COUNT] = {
     [CS_RUN_LIST] =
         "SELECT " RUN_COLS "WHERE (?1 IS NULL OR r.state = ?1) "
         "AND (?2 IS NULL OR r.screen_id = ?2) AND r.created_ms >= ?3 "
+        "AND (?5 IS NULL OR r.kind = ?5) "
         "ORDER BY r.created_ms DESC, r.uuid LIMIT ?4",
+    /* catalog.h says which run calibrates which: `IS` so that two unknown
+     * (NULL) settings match; the ROI compares as JSON text, written by one
+     * function (dispatch.c's settings_json). */
+    [CS_RUN_CALIBRATION] =
+        "SELECT c.uuid FROM runs AS s JOIN runs AS c ON c.kind = ?2 "
+        "AND c.state = 'done' AND c.file_path IS NOT NULL AND c.uuid <> s.uuid "
+        "AND c.camera_serial IS s.camera_serial "
+        "AND json_extract(c.camera_settings_json, '$.pixel_format') IS "
+        "json_extract(s.camera_settings_json, '$.pixel_format') "
+        "AND json_extract(c.camera_settings_json, '$.roi') IS "
+        "json_extract(s.camera_settings_json, '$.roi') "
+        "AND (?2 <> 'dark' OR json_extract(c.camera_settings_json, "
+        "'$.exposure_us') IS json_extract(s.camera_settings_json, '$.exposure_us')) "
+        "AND (?2 <> 'calibrator' OR (c.screen_id IS s.screen_id AND "
+        "c.mask_id IS s.mask_id)) "
+        "WHERE s.uuid = ?1 "
+        "ORDER BY abs(c.created_ms - s.created_ms), c.created_ms DESC LIMIT 1",
     /* ?1 is checked to be hex digits and dashes, so substr is exact. */
     [CS_RUN_RESOLVE] =
         "SELECT uuid FROM runs WHERE substr(uuid, 1, length(?1)) = ?1 "

@@ -27,6 +27,31 @@ static const char *const state_names[] = {
 };
 #define NSTATE_NAMES ((int)(sizeof state_names / sizeof state_names[0]))
 
+/* As 003_run_kind.sql's CHECK. */
+static const char *const kind_names[] = {
+    [CATALOG_KIND_ANY] = NULL,
+    [CATALOG_SCIENCE] = "science",
+    [CATALOG_DARK] = "dark",
+    [CATALOG_FLAT] = "flat",
+    [CATALOG_CALIBRATOR] = "calibrator",
+};
+#define NKIND_NAMES ((int)(sizeof kind_names / sizeof kind_names[0]))
+
+const char *catalog_kind_name(catalog_kind k)
+{
+    return (int)k > 0 && (int)k < NKIND_NAMES ? kind_names[k] : NULL;
+}
+
+int catalog_kind_parse(const char *name, catalog_kind *out)
+{
+    for (int i = 1; name && i < NKIND_NAMES; i++)
+        if (strcmp(name, kind_names[i]) == 0) {
+            *out = (catalog_kind)i;
+            return SL_OK;
+        }
+    return SL_EINVAL;
+}
+
 const char *catalog_state_name(catalog_state s)
 {
     return (int)s > 0 && (int)s < NSTATE_NAMES ? state_names[s] : NULL;

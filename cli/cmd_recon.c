@@ -21,7 +21,7 @@
 
 typedef struct recon_args {
     char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
-    char *dark, *flat;
+    char *dark, *flat, *flat_dark;
     int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary, overwrite;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
@@ -201,6 +201,7 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     o->badpix_path = a->badpix;
     o->dark_path = a->dark;
     o->flat_path = a->flat;
+    o->flat_dark_path = a->flat_dark;
     o->saturation_adu = a->saturation;
     o->photons_per_frame = a->photons;
     o->adu_per_photon = a->gain_adu_per_photon;
@@ -237,6 +238,7 @@ static int outputs_begin(const recon_args *a, char **inputs, int ninputs,
     g_ptr_array_add(in, a->badpix);
     g_ptr_array_add(in, a->dark);
     g_ptr_array_add(in, a->flat);
+    g_ptr_array_add(in, a->flat_dark);
     GError *gerr = NULL;
     const char *const *v = (const char *const *)in->pdata;
     const char *path[3] = {a->out, a->png, a->png_raw};
@@ -359,7 +361,8 @@ int cmd_recon(int argc, char **argv)
         {"no-prep", 0, 0, G_OPTION_ARG_NONE, &a.no_prep, "do not clean frames (sky, NaN, saturation)", NULL},
         {"learn-badpix", 0, 0, G_OPTION_ARG_NONE, &a.learn_badpix, "learn the detector from every frame, not the first 32", NULL},
         {"dark", 0, 0, G_OPTION_ARG_FILENAME, &a.dark, "dark or bias: a FITS image, or a cube of them (averaged), in the frames' ADU; subtracted (then no sky is subtracted)", "FITS"},
-        {"flat", 0, 0, G_OPTION_ARG_FILENAME, &a.flat, "flat field, dark-subtracted: an image or a cube (averaged); divided after normalising to mean 1", "FITS"},
+        {"flat", 0, 0, G_OPTION_ARG_FILENAME, &a.flat, "flat field: an image or a cube (averaged), dark-subtracted unless --flat-dark; divided after normalising to mean 1", "FITS"},
+        {"flat-dark", 0, 0, G_OPTION_ARG_FILENAME, &a.flat_dark, "the flat's own dark (an image or a cube), subtracted from the flat first", "FITS"},
         {"badpix", 0, 0, G_OPTION_ARG_FILENAME, &a.badpix, "bad-pixel map: a FITS image of the frame size, nonzero = bad", "FITS"},
         {"no-detect", 0, 0, G_OPTION_ARG_NONE, &a.no_detect, "do not learn the detector from the raw frames (bad pixels, saturation, sky region, recentring)", NULL},
         {"no-recentre", 0, 0, G_OPTION_ARG_NONE, &a.no_recentre, "do not recentre frames on the speckle cloud", NULL},
@@ -404,7 +407,7 @@ free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);
     g_free(a.target); g_free(a.window); g_free(a.tsm_phases); g_free(a.tsm_inverse); g_free(a.stretch); g_free(a.cut); g_free(a.png_raw); g_free(a.skips); g_free(a.badpix); g_free(a.phase_weights);
-    g_free(a.dark); g_free(a.flat);
+    g_free(a.dark); g_free(a.flat); g_free(a.flat_dark);
     return status;
 }
 

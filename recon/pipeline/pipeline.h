@@ -79,6 +79,10 @@ typedef struct pipeline_opts {
      * dark-subtracted, divided after normalising to mean 1.  NULL: none. */
     const char *dark_path;
     const char *flat_path;
+    /* The flat's own dark (a flat run straight from the camera carries
+     * the bias): subtracted from the flat before it is normalised.  NULL:
+     * the flat is already dark-subtracted. */
+    const char *flat_dark_path;
     double saturation_adu;    /* raw values >= this are repaired; 0 = none */
     /* Photon statistics: > 0 given; 0 = from the header (SIMPHOT,
      * SIMGAIN) when present; < 0 = treat the data as not photon counts. */

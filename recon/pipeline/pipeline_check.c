@@ -78,6 +78,9 @@ int pipeline_opts_check(const pipeline_opts *o, sl_err *e)
     if (cal && !o->prep)
         return sl_seterr(e, SL_EINVAL, "a %s is applied by the frame "
                          "cleaning, which is off (no-prep)", cal);
+    if (o->flat_dark_path && !o->flat_path)
+        return sl_seterr(e, SL_EINVAL, "the flat's dark %s: give the flat "
+                         "(--flat) it belongs to", o->flat_dark_path);
     if (o->target_path && !o->ref_path)
         return sl_seterr(e, SL_EINVAL, "target PSF %s: it replaces a "
                          "reference's; give the reference (--ref)", o->target_path);

@@ -201,16 +201,21 @@ static int stream_prep(stream *s, const pipeline_opts *o, sl_err *err)
     po.window = PREP_WIN_NONE;   /* the estimators apodise themselves */
     po.saturation_adu = o->saturation_adu > 0 ? o->saturation_adu * s->scale
                                               : s->det.sat_level;
-    float *dark = NULL, *flat = NULL;
+    float *dark = NULL, *flat = NULL, *flat_dark = NULL;
     if ((o->dark_path && (rc = read_calibration(s, o->dark_path, "dark", &dark, err)) != SL_OK) ||
-        (o->flat_path && (rc = read_calibration(s, o->flat_path, "flat", &flat, err)) != SL_OK))
+        (o->flat_path && (rc = read_calibration(s, o->flat_path, "flat", &flat, err)) != SL_OK) ||
+        (o->flat_dark_path &&
+         (rc = read_calibration(s, o->flat_dark_path, "flat's dark", &flat_dark, err)) != SL_OK))
         goto free_cal;
+    for (size_t i = 0; flat && flat_dark && i < (size_t)s->w * s->h; i++)
+        flat[i] -= flat_dark[i];
     po.dark = dark;
     po.flat = flat;
     rc = prep_new(&s->pp, s->w, s->h, &po, err); /* copies them */
 free_cal:
     free(dark);
     free(flat);
+    free(flat_dark);
     if (rc != SL_OK)
         goto free_rs;
     if (rs)

@@ -26,6 +26,7 @@
 
 typedef struct cal_fx {
     char dir[64], clean[96], raw[96], dark[96], flat[96], small[96], zero[96];
+    char rawflat[96];   /* the flat as a camera gives it: with the dark */
 } cal_fx;
 
 static double flat_at(int x, int y)
@@ -47,7 +48,7 @@ static int write_calibrations(cal_fx *f)
     cube_meta m;
     cube_meta_init(&m);
     seq *d = seq_new(N, N, 2), *fl = seq_new(N, N, 1), *sm = seq_new(N / 2, N / 2, 1);
-    seq *z = seq_new(N, N, 1);
+    seq *z = seq_new(N, N, 1), *rf = seq_new(N, N, 1);
     for (int i = 0; i < N * N; i++)
         z->data[i] = 0;
     for (int y = 0; y < N; y++)
@@ -56,11 +57,14 @@ static int write_calibrations(cal_fx *f)
             d->data[y * N + x] = (float)(dv + wob);
             d->data[N * N + y * N + x] = (float)(dv - wob);
             fl->data[y * N + x] = (float)(3 * flat_at(x, y));
+            rf->data[y * N + x] = (float)(3 * flat_at(x, y) + dv);
         }
     for (int i = 0; i < N * N / 4; i++)
         sm->data[i] = 1;
     int rc = cube_write(f->dark, d, &m, &e) | cube_write(f->flat, fl, &m, &e) |
-             cube_write(f->small, sm, &m, &e) | cube_write(f->zero, z, &m, &e);
+             cube_write(f->small, sm, &m, &e) | cube_write(f->zero, z, &m, &e) |
+             cube_write(f->rawflat, rf, &m, &e);
+    seq_free(rf);
     seq_free(z);
     seq_free(d);
     seq_free(fl);
@@ -133,18 +137,20 @@ static int cal_start(cal_fx *f)
     snprintf(f->flat, sizeof f->flat, "%s/flat.fits", f->dir);
     snprintf(f->small, sizeof f->small, "%s/small.fits", f->dir);
     snprintf(f->zero, sizeof f->zero, "%s/zero.fits", f->dir);
+    snprintf(f->rawflat, sizeof f->rawflat, "%s/rawflat.fits", f->dir);
     return write_calibrations(f) == SL_OK && write_cubes(f) == SL_OK ? 0 : -1;
 }
 
 static void cal_stop(cal_fx *f)
 {
     unlink(f->clean); unlink(f->raw); unlink(f->dark); unlink(f->flat); unlink(f->small); unlink(f->zero);
+    unlink(f->rawflat);
     rmdir(f->dir);
 }
 
 /* Reconstruct path (tsm-fourier, no skips: the same geometry every run). */
-static int recon(const char *path, const char *dark, const char *flat, int detect,
-                 pipeline_result *r, sl_err *e)
+static int recon_fd(const char *path, const char *dark, const char *flat,
+                    const char *flat_dark, int detect, pipeline_result *r, sl_err *e)
 {
     pipeline_opts o;
     pipeline_opts_defaults(&o);
@@ -154,8 +160,15 @@ static int recon(const char *path, const char *dark, const char *flat, int detec
     o.detect = detect;
     o.dark_path = dark;
     o.flat_path = flat;
+    o.flat_dark_path = flat_dark;
     const char *paths[] = {path};
     return pipeline_run(paths, 1, &o, r, e);
+}
+
+static int recon(const char *path, const char *dark, const char *flat, int detect,
+                 pipeline_result *r, sl_err *e)
+{
+    return recon_fd(path, dark, flat, NULL, detect, r, e);
 }
 
 TEST(dark_and_flat_restore_the_frames)
@@ -188,6 +201,37 @@ TEST(dark_and_flat_restore_the_frames)
     CHECK(dark == 1 && flat == 1, "PREPDARK %g PREPFLAT %g", dark, flat);
 }
 
+/* A flat straight from the camera (bias and dark in it) with its own dark
+ * calibrates as well as a dark-subtracted one; used without, it does not. */
+TEST(a_raw_flat_with_its_dark)
+{
+    cal_fx f;
+    CHECK(cal_start(&f) == 0, "fixture");
+    pipeline_result a, b, c;
+    sl_err e = {0};
+    int ra = recon(f.clean, f.zero, NULL, 0, &a, &e);
+    int rb = ra == SL_OK ? recon_fd(f.raw, f.dark, f.rawflat, f.dark, 0, &b, &e) : ra;
+    int rc = rb == SL_OK ? recon_fd(f.raw, f.dark, f.rawflat, NULL, 0, &c, &e) : rb;
+    double cab = NAN, cac = NAN;
+    if (rc == SL_OK) {
+        cab = metrics_corr(a.image, b.image, N, N);
+        cac = metrics_corr(a.image, c.image, N, N);
+        pipeline_result_clear(&a);
+        pipeline_result_clear(&b);
+        pipeline_result_clear(&c);
+    }
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.flat_dark_path = f.dark;
+    sl_err e2 = {0};
+    int r2 = pipeline_opts_check(&o, &e2);
+    cal_stop(&f);
+    CHECK(rc == SL_OK, "%s", e.msg);
+    CHECK(cab >= 0.99999, "raw flat with its dark: c %.6f (without: %.6f)", cab, cac);
+    CHECK(cac < cab - 1e-4, "raw flat without its dark: c %.6f, with %.6f", cac, cab);
+    CHECK(r2 == SL_EINVAL && strstr(e2.msg, "flat"), "a flat's dark without a flat: %s", e2.msg);
+}
+
 TEST(bad_calibration_files_are_named)
 {
     cal_fx f;
@@ -212,4 +256,5 @@ TEST(bad_calibration_files_are_named)
     CHECK(r3 == SL_EINVAL && strstr(e3.msg, "dark"), "a dark without cleaning: %s", e3.msg);
 }
 
-TC_MAIN(TC_CASE(dark_and_flat_restore_the_frames), TC_CASE(bad_calibration_files_are_named))
+TC_MAIN(TC_CASE(dark_and_flat_restore_the_frames), TC_CASE(a_raw_flat_with_its_dark),
+        TC_CASE(bad_calibration_files_are_named))

@@ -293,7 +293,8 @@ asan-ci-build:
 valgrind: all
 	@tests/valgrind $(TEST_BIN)
 
-# The main job.  Until the daemon exists: simulate a binary and reconstruct.
+# The bench experiment on the simulated bench (scripts/demo: fake stage and
+# camera, specklabd, binary-bench through every screen, exports, figures).
 demo: deps
 	@$(MAKE) --no-print-directory all
 	@scripts/demo
@@ -314,11 +315,11 @@ FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
 FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/base/status.c
-FUZZ_CONFIG_SRC := daemon/config.c recon/base/status.c recon/pipeline/pipeline_skip_names.c
+FUZZ_CONFIG_SRC := daemon/config.c recon/base/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c recon/pipeline/pipeline_skip_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
+                     daemon/config.c recon/pipeline/pipeline_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
 $(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/io/cube.h recon/io/cube_guard.h recon/io/cube_header.h recon/io/datasum.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h

@@ -13,8 +13,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "catalog.h"
 #include "cli.h"
 #include "cmd_daemon.h"
+#include "pipeline/pipeline.h"
 #include "progress.h"
 
 #define EVENT_WAIT_MS 500
@@ -37,7 +39,7 @@ typedef struct bench_run {
 } bench_run;
 
 typedef struct bench_opts {
-    char *screens, *masks, *object, *method;
+    char *screens, *masks, *object, *method, *kind;
     int frames, exposure_us, timeout_s;
 } bench_opts;
 
@@ -120,6 +122,8 @@ static void start_runs(client *c, const bench_opts *o, bench_run *runs, int n,
         json_object_set_string_member(args, "operator", g_get_user_name());
         if (o->method)
             json_object_set_string_member(args, "reconstruct", o->method);
+        if (o->kind)
+            json_object_set_string_member(args, "kind", o->kind);
         r->t0_s = cli_now_s();
         if (client_call(c, "start-run", args, DCMD_QUERY_MS, &res) != SL_OK) {
             set_str(&r->state, "not started");
@@ -437,7 +441,8 @@ int cmd_experiment(int argc, char **argv)
         {"frames", 'n', 0, G_OPTION_ARG_INT, &o.frames, "frames per run (default 100)", "N"},
         {"exposure-us", 0, 0, G_OPTION_ARG_INT, &o.exposure_us, "exposure per frame (default: the daemon's)", "US"},
         {"object", 0, 0, G_OPTION_ARG_STRING, &o.object, "object name recorded with each run", "NAME"},
-        {"method", 0, 0, G_OPTION_ARG_STRING, &o.method, "reconstruction tsm|direct|tsm-fourier|none (default: the daemon's)", "M"},
+        {"method", 0, 0, G_OPTION_ARG_STRING, &o.method, "reconstruction auto|direct|tsm|tsm-fourier|none (default: the daemon's)", "M"},
+        {"kind", 0, 0, G_OPTION_ARG_STRING, &o.kind, "what the runs are: science (default), dark (light blocked: a closed mask slot), flat (uniform light) or calibrator (a point source); darks and flats calibrate later reconstructions and are not reconstructed", "KIND"},
         {"timeout-s", 0, 0, G_OPTION_ARG_INT, &o.timeout_s, "give up waiting after S s (default runs x (60 + 0.5 x frames))", "S"},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx = g_option_context_new("binary-bench - the laser binary through each screen and mask");
@@ -467,10 +472,16 @@ int cmd_experiment(int argc, char **argv)
                         "--exposure-us and --timeout-s positive\n");
         goto free_ctx;
     }
-    if (o.method && strcmp(o.method, "tsm") && strcmp(o.method, "direct") &&
-        strcmp(o.method, "tsm-fourier") && strcmp(o.method, "none")) {
-        fprintf(stderr, "specklab experiment: unknown --method '%s' (tsm, direct, "
+    int m;
+    if (o.method && strcmp(o.method, "none") && pipeline_method_parse(o.method, &m) != SL_OK) {
+        fprintf(stderr, "specklab experiment: unknown --method '%s' (auto, direct, tsm, "
                         "tsm-fourier, none)\n", o.method);
+        goto free_ctx;
+    }
+    catalog_kind k;
+    if (o.kind && catalog_kind_parse(o.kind, &k) != SL_OK) {
+        fprintf(stderr, "specklab experiment: unknown --kind '%s' (science, dark, flat, "
+                        "calibrator)\n", o.kind);
         goto free_ctx;
     }
     status = binary_bench(&d, &o);
@@ -478,5 +489,6 @@ free_ctx:
     g_option_context_free(ctx);
     dcmd_opts_clear(&d);
     g_free(o.screens); g_free(o.masks); g_free(o.object); g_free(o.method);
+    g_free(o.kind);
     return status;
 }

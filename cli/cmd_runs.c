@@ -39,8 +39,9 @@ static void print_run_row(JsonObject *r)
     char fr[48], r0[32], ct[32];
     snprintf(fr, sizeof fr, "%lld/%lld", (long long)dcmd_int(r, "frames_acquired", 0),
              (long long)dcmd_int(r, "frames_requested", 0));
-    printf("%-8.8s  %-14s %-10s %-8s %9s %7s  %-19s  %s\n", or_dash(dcmd_str(r, "uuid")),
-           or_dash(dcmd_str(r, "state")), or_dash(dcmd_str(r, "screen")),
+    printf("%-8.8s  %-14s %-10s %-10s %-8s %9s %7s  %-19s  %s\n", or_dash(dcmd_str(r, "uuid")),
+           or_dash(dcmd_str(r, "state")), or_dash(dcmd_str(r, "kind")),
+           or_dash(dcmd_str(r, "screen")),
            or_dash(dcmd_str(r, "mask")), fr,
            dcmd_fmt(r0, sizeof r0, "%.3f", dcmd_num(r, "r0_m")),
            short_time(ct, sizeof ct, dcmd_str(r, "created")),
@@ -49,8 +50,8 @@ static void print_run_row(JsonObject *r)
 
 static void print_run_header(void)
 {
-    printf("%-8s  %-14s %-10s %-8s %9s %7s  %-19s  %s\n", "RUN", "STATE", "SCREEN",
-           "MASK", "FRAMES", "R0(m)", "CREATED (UTC)", "REASON");
+    printf("%-8s  %-14s %-10s %-10s %-8s %9s %7s  %-19s  %s\n", "RUN", "STATE", "KIND",
+           "SCREEN", "MASK", "FRAMES", "R0(m)", "CREATED (UTC)", "REASON");
 }
 
 static void print_recon_rows(JsonArray *recs)
@@ -91,7 +92,7 @@ static void print_recon_rows(JsonArray *recs)
 /* Every member of a run object, one per line, in the protocol's order. */
 static void print_run_detail(JsonObject *r)
 {
-    static const char *keys[] = {"uuid", "state", "exit_reason", "created", "started",
+    static const char *keys[] = {"uuid", "state", "kind", "exit_reason", "created", "started",
                                  "ended", "operator", "object", "screen", "mask",
                                  "camera_serial", "frames_requested", "frames_acquired",
                                  "frames_failed", "packets_missing", "file", "sha256",
@@ -123,10 +124,12 @@ static void print_run_detail(JsonObject *r)
 
 /* The filters of `runs list` into args; 0 after a usage error. */
 static int list_args(JsonObject *args, const char *state, const char *screen,
-                     const char *since, int limit)
+                     const char *kind, const char *since, int limit)
 {
     if (state)
         json_object_set_string_member(args, "state", state);
+    if (kind)
+        json_object_set_string_member(args, "kind", kind);
     if (screen)
         json_object_set_string_member(args, "screen", screen);
     if (limit < 0 || limit > 100000) {
@@ -152,11 +155,12 @@ static int list_args(JsonObject *args, const char *state, const char *screen,
 int cmd_runs(int argc, char **argv)
 {
     dcmd_opts o = {0};
-    char *state = NULL, *screen = NULL, *since = NULL;
+    char *state = NULL, *screen = NULL, *since = NULL, *kind = NULL;
     int limit = 0;
     GOptionEntry entries[] = {
         {"state", 0, 0, G_OPTION_ARG_STRING, &state, "list: only runs in this state (done, failed...)", "S"},
         {"screen", 0, 0, G_OPTION_ARG_STRING, &screen, "list: only runs through this screen", "NAME"},
+        {"kind", 0, 0, G_OPTION_ARG_STRING, &kind, "list: only runs of this kind (science, dark, flat, calibrator)", "KIND"},
         {"since", 0, 0, G_OPTION_ARG_STRING, &since, "list: created since DATE, ISO time, unix s or age (30d)", "DATE"},
         {"limit", 0, 0, G_OPTION_ARG_INT, &limit, "list: at most N runs, newest first (default 50)", "N"},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
@@ -173,12 +177,12 @@ int cmd_runs(int argc, char **argv)
     int show = !strcmp(sub, "show");
     if ((show && argc != 3) || (!show && (strcmp(sub, "list") || argc > 2))) {
         fprintf(stderr, "specklab runs: usage: specklab runs list [--state S] [--screen NAME] "
-                        "[--since DATE] [--limit N] | specklab runs show RUN-ID\n");
+                        "[--kind KIND] [--since DATE] [--limit N] | specklab runs show RUN-ID\n");
         goto free_args;
     }
     if (show)
         json_object_set_string_member(args, "run", argv[2]);
-    else if (!list_args(args, state, screen, since, limit))
+    else if (!list_args(args, state, screen, kind, since, limit))
         goto free_args;
     status = 1;
     if (!(c = dcmd_connect(&o, "specklab runs")) ||
@@ -207,7 +211,7 @@ free_args:
     json_object_unref(args);
     g_option_context_free(ctx);
     dcmd_opts_clear(&o);
-    g_free(state); g_free(screen); g_free(since);
+    g_free(state); g_free(screen); g_free(since); g_free(kind);
     return status;
 }
 

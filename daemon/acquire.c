@@ -263,6 +263,10 @@ static void fill_meta(acq *a, cube_meta *m)
                           "and mask %s (slot %d)", sp->uuid, sp->frames, sp->screen,
                           sp->screen_slot, sp->mask, sp->mask_slot);
     cube_meta_set_str(m, "RUNUUID", sp->uuid, "specklab run");
+    /* IRAF's values, which ds9, ccdproc and astropy's tools read */
+    cube_meta_set_str(m, "IMAGETYP", sp->kind == CATALOG_DARK ? "dark"
+                      : sp->kind == CATALOG_FLAT ? "flat" : "object",
+                      catalog_kind_name(sp->kind ? sp->kind : CATALOG_SCIENCE));
     cube_meta_set_str(m, "SCREEN", sp->screen, "phase screen in the beam");
     cube_meta_set_num(m, "SCRSLOT", sp->screen_slot, "screen wheel slot");
     cube_meta_set_str(m, "MASK", sp->mask, "pupil mask in the beam");
@@ -566,7 +570,9 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     progress_start(&a.pw, r->cfg->catalog, r->cfg->catalog_busy_timeout_ms, sp->uuid);
     end = finish(&a, stream(&a, reason, rlen), reason, rlen);
     seeing_result sr;
-    if (end == ACQ_COMPLETE && a.see && seeing_result_get(a.see, &sr) == SL_OK &&
+    /* no star in a dark or a flat: no r0 */
+    int starlit = sp->kind != CATALOG_DARK && sp->kind != CATALOG_FLAT;
+    if (end == ACQ_COMPLETE && starlit && a.see && seeing_result_get(a.see, &sr) == SL_OK &&
         isfinite(sr.r0_m) && sr.r0_m > 0) {
         catalog_r0 m;
         catalog_r0_init(&m);

@@ -60,7 +60,7 @@ static const char defaults_text[] =
     "\n"
     "[daemon]\n"
     "# socket=./var/specklabd.sock (empty: DATA_DIR/specklabd.sock)\n"
-    "reconstruct=tsm-fourier\n"
+    "reconstruct=auto\n"
     "projections=0\n"
     "# TSM phases: corrected (photon-bias-corrected, when cubes carry GAIN) or raw\n"
     "tsm_phases=corrected\n"
@@ -72,7 +72,13 @@ static const char defaults_text[] =
     "# a connection with no request in hand for this long is closed\n"
     "client_idle_timeout_ms=30000\n"
     "# how long a catalogue write waits for another process's lock\n"
-    "catalog_busy_timeout_ms=5000\n";
+    "catalog_busy_timeout_ms=5000\n"
+    "\n"
+    "[calibration]\n"
+    "# files (FITS image or cube) for every reconstruction; empty: none\n"
+    "# dark=   flat=   flat_dark=   badpix=\n"
+    "# yes: else the nearest done dark and flat runs of the same camera settings\n"
+    "catalogued=yes\n";
 
 const char *config_defaults_text(void)
 {
@@ -90,12 +96,15 @@ static const char *const known_keys[][16] = {
     {"paths", "data_dir", "catalog", NULL},
     {"daemon", "socket", "reconstruct", "projections", "tsm_phases", "skips", "fftw", "max_clients",
      "client_idle_timeout_ms", "catalog_busy_timeout_ms", NULL},
+    {"calibration", "dark", "flat", "flat_dark", "badpix", "catalogued", NULL},
 };
 
+/* The CLI's names (pipeline_method_parse), so that both accept the same
+ * methods and auto is the default of both; "none": no reconstruction. */
 int config_method_valid(const char *name)
 {
-    return name && (!strcmp(name, "tsm") || !strcmp(name, "tsm-fourier") ||
-                    !strcmp(name, "direct") || !strcmp(name, "none"));
+    int m;
+    return name && (!strcmp(name, "none") || pipeline_method_parse(name, &m) == SL_OK);
 }
 
 /* Names become catalogue keys and FITS values, never paths; still, keep
@@ -407,11 +416,11 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
                              err)) ||
         (rc = get_path(kf, "daemon", "socket", c->data_dir, "specklabd.sock", &c->socket,
                        err)) ||
-        (rc = get_str(kf, "daemon", "reconstruct", "tsm-fourier", &c->reconstruct, err)))
+        (rc = get_str(kf, "daemon", "reconstruct", "auto", &c->reconstruct, err)))
         return rc;
     if (!config_method_valid(c->reconstruct))
-        return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected tsm, "
-                         "tsm-fourier, direct or none", c->reconstruct);
+        return sl_seterr(err, SL_EINVAL, "config [daemon] reconstruct = '%s': expected auto, "
+                         "direct, tsm, tsm-fourier or none", c->reconstruct);
     if ((rc = get_flag(kf, "daemon", "tsm_phases", "corrected", "raw",
                        &c->tsm_corrected_phases, err)) ||
         (rc = get_flag(kf, "daemon", "fftw", "measure", "estimate", &c->fftw_measure, err)))
@@ -430,6 +439,37 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
         (rc = get_int(kf, "daemon", "catalog_busy_timeout_ms", 5000, 10, 600000,
                       &c->catalog_busy_timeout_ms, err)))
         return rc;
+    return SL_OK;
+}
+
+/* A calibration file: absolute, and there now (a typo found at start-up,
+ * not at the end of every run); "" is none. */
+static int get_calibration(GKeyFile *kf, const char *k, char **out, sl_err *err)
+{
+    char *s = NULL;
+    int rc = get_str(kf, "calibration", k, "", &s, err);
+    if (rc == SL_OK && *s) {
+        *out = absolute(s);
+        if (!g_file_test(*out, G_FILE_TEST_IS_REGULAR))
+            rc = sl_seterr(err, SL_EINVAL, "config [calibration] %s = '%s': no such file",
+                           k, *out);
+    }
+    g_free(s);
+    return rc;
+}
+
+static int read_calibrations(config *c, GKeyFile *kf, sl_err *err)
+{
+    int rc;
+    if ((rc = get_calibration(kf, "dark", &c->calib_dark, err)) ||
+        (rc = get_calibration(kf, "flat", &c->calib_flat, err)) ||
+        (rc = get_calibration(kf, "flat_dark", &c->calib_flat_dark, err)) ||
+        (rc = get_calibration(kf, "badpix", &c->calib_badpix, err)) ||
+        (rc = get_flag(kf, "calibration", "catalogued", "yes", "no", &c->calib_catalogued, err)))
+        return rc;
+    if (c->calib_flat_dark && !c->calib_flat)
+        return sl_seterr(err, SL_EINVAL, "config [calibration] flat_dark = '%s' without a "
+                         "flat", c->calib_flat_dark);
     return SL_OK;
 }
 
@@ -467,7 +507,8 @@ int config_load(config *c, const char *path, const char *socket_override,
     }
     if (socket_override)
         g_key_file_set_string(kf, "daemon", "socket", socket_override);
-    rc = read_values(c, kf, err);
+    if ((rc = read_values(c, kf, err)) == SL_OK)
+        rc = read_calibrations(c, kf, err);
 free_kf:
     if (ge)
         g_error_free(ge);
@@ -495,6 +536,10 @@ void config_clear(config *c)
     g_free(c->catalog);
     g_free(c->socket);
     g_free(c->reconstruct);
+    g_free(c->calib_dark);
+    g_free(c->calib_flat);
+    g_free(c->calib_flat_dark);
+    g_free(c->calib_badpix);
     memset(c, 0, sizeof *c);
 }
 

@@ -15,6 +15,7 @@
  *   [paths]   data_dir catalog
  *   [daemon]  socket reconstruct projections tsm_phases skips fftw max_clients
  *             client_idle_timeout_ms catalog_busy_timeout_ms
+ *   [calibration] dark flat flat_dark badpix catalogued
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
  * typo must not silently fall back to a default).  Relative paths are
@@ -64,7 +65,7 @@ typedef struct config {
     int nmasks;
     /* [paths], [daemon]; absolute after config_load */
     char *data_dir, *catalog, *socket;
-    char *reconstruct;          /* "tsm", "tsm-fourier", "direct", "none" */
+    char *reconstruct;          /* "auto", "direct", "tsm", "tsm-fourier", "none" */
     int projections;            /* TSM angles; 0: the pipeline's default */
     int skips;                  /* pipeline_opts.skips (PIPE_SKIP_* bits) */
     int tsm_corrected_phases;   /* 1: pipeline_opts.tsm_corrected_phases
@@ -75,6 +76,11 @@ typedef struct config {
                                  * long is closed (server.h) */
     int catalog_busy_timeout_ms; /* a write waits this long for another
                                   * process's lock, then fails "locked" */
+    /* [calibration]: files applied to every reconstruction (absolute,
+     * existing at load; NULL: none), and whether the catalogue's dark and
+     * flat runs stand in for an absent file (worker.c says which run). */
+    char *calib_dark, *calib_flat, *calib_flat_dark, *calib_badpix;
+    int calib_catalogued;
 } config;
 
 /* The embedded defaults, as GKeyFile text (also printed by
@@ -95,7 +101,7 @@ const config_slot *config_mask_find(const config *c, const char *name_or_slot);
 const config_slot *config_screen_at(const config *c, int slot);
 const config_slot *config_mask_at(const config *c, int slot);
 
-/* "tsm", "tsm-fourier", "direct" or "none". */
+/* "auto", "direct", "tsm", "tsm-fourier" or "none". */
 int config_method_valid(const char *name);
 
 #endif

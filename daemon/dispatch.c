@@ -202,88 +202,126 @@ static char *settings_json(const config *cfg, double exposure_us)
     return proto_take_string(n);
 }
 
-static char *cmd_start_run(request *rq)
+/* start-run's arguments, read and checked (start_read). */
+typedef struct start_args {
+    char *screen, *mask, *object, *oper, *method, *kind;
+    gint64 frames, proj;
+    double exposure_us;
+    catalog_kind k;
+    const config_slot *sc, *mk;
+} start_args;
+
+static void start_args_clear(start_args *a)
 {
-    daemon_ctx *d = rq->d;
-    const config *cfg = d->cfg;
-    char *screen = NULL, *mask = NULL, *object = NULL, *oper = NULL, *method = NULL;
-    char *reply = NULL, *settings = NULL;
-    gint64 frames = 0, proj = 0;
-    double exposure = cfg->exposure_us;
-    int64_t screen_id = 0, mask_id = 0;
-    const config_slot *sc = NULL, *mk = NULL;
-    if (arg_str(rq, "screen", 1, 1, &screen, &reply) || arg_str(rq, "mask", 1, 1, &mask, &reply) ||
-        arg_int(rq, "frames", 1, 1, 100000, &frames, NULL, &reply) ||
-        arg_num(rq, "exposure_us", 0, 1, 1e7, &exposure, NULL, &reply) ||
-        arg_str(rq, "object", 0, 0, &object, &reply) ||
-        arg_str(rq, "operator", 0, 0, &oper, &reply) ||
-        arg_str(rq, "reconstruct", 0, 0, &method, &reply) ||
-        arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply))
-        goto free_args;
-    if ((object && !text_ok(object)) || (oper && !text_ok(oper))) {
-        reply = reply_err(rq, "bad-request", "%s must be at most %d bytes of UTF-8 without "
-                          "control characters, '/', '\\' or '..'",
-                          object && !text_ok(object) ? "object" : "operator", TEXT_MAX);
-        goto free_args;
-    }
-    if (method && !config_method_valid(method)) {
-        reply = reply_err(rq, "bad-request", "reconstruct must be tsm, tsm-fourier, direct or "
-                          "none, got '%.40s'", method);
-        goto free_args;
-    }
-    if (!(sc = config_screen_find(cfg, screen)) || !(mk = config_mask_find(cfg, mask))) {
-        int bad_screen = !sc;
+    g_free(a->screen), g_free(a->mask), g_free(a->object), g_free(a->oper);
+    g_free(a->method), g_free(a->kind);
+}
+
+/* NULL, or the error reply. */
+static char *start_read(request *rq, start_args *a)
+{
+    const config *cfg = rq->d->cfg;
+    char *reply = NULL;
+    a->exposure_us = cfg->exposure_us;
+    if (arg_str(rq, "screen", 1, 1, &a->screen, &reply) ||
+        arg_str(rq, "mask", 1, 1, &a->mask, &reply) ||
+        arg_int(rq, "frames", 1, 1, 100000, &a->frames, NULL, &reply) ||
+        arg_num(rq, "exposure_us", 0, 1, 1e7, &a->exposure_us, NULL, &reply) ||
+        arg_str(rq, "object", 0, 0, &a->object, &reply) ||
+        arg_str(rq, "operator", 0, 0, &a->oper, &reply) ||
+        arg_str(rq, "reconstruct", 0, 0, &a->method, &reply) ||
+        arg_int(rq, "projections", 0, 1, 4096, &a->proj, NULL, &reply) ||
+        arg_str(rq, "kind", 0, 0, &a->kind, &reply))
+        return reply;
+    if ((a->object && !text_ok(a->object)) || (a->oper && !text_ok(a->oper)))
+        return reply_err(rq, "bad-request", "%s must be at most %d bytes of UTF-8 without "
+                         "control characters, '/', '\\' or '..'",
+                         a->object && !text_ok(a->object) ? "object" : "operator", TEXT_MAX);
+    if (a->method && !config_method_valid(a->method))
+        return reply_err(rq, "bad-request", "reconstruct must be auto, direct, tsm, tsm-fourier "
+                         "or none, got '%.40s'", a->method);
+    a->k = CATALOG_SCIENCE;
+    if (a->kind && catalog_kind_parse(a->kind, &a->k) != SL_OK)
+        return reply_err(rq, "bad-request", "kind must be science, dark, flat or calibrator, "
+                         "got '%.40s'", a->kind);
+    /* a dark or a flat is calibration, never an image of anything */
+    int calib = a->k == CATALOG_DARK || a->k == CATALOG_FLAT;
+    if (calib && a->method && strcmp(a->method, "none"))
+        return reply_err(rq, "bad-request", "a %s run is not reconstructed: reconstruct "
+                         "'%.40s' with kind %s", a->kind, a->method, a->kind);
+    if (!(a->sc = config_screen_find(cfg, a->screen)) || !(a->mk = config_mask_find(cfg, a->mask))) {
+        int bad_screen = !a->sc;
         char *names = bad_screen ? slot_names(cfg->screens, cfg->nscreens)
                                  : slot_names(cfg->masks, cfg->nmasks);
         reply = reply_err(rq, "not-found", "no %s '%.64s' on the wheel; configured: %s",
-                          bad_screen ? "screen" : "mask", bad_screen ? screen : mask, names);
+                          bad_screen ? "screen" : "mask", bad_screen ? a->screen : a->mask,
+                          names);
         g_free(names);
-        goto free_args;
     }
-    if (catalog_screen_find(d->cat, sc->name, &screen_id) != SL_OK ||
-        catalog_mask_find(d->cat, mk->name, &mask_id) != SL_OK) {
-        reply = reply_err(rq, "internal", "%s", catalog_errmsg(d->cat));
-        goto free_args;
-    }
-    runner_status rs;
-    runner_status_get(d->run, &rs);
-    g_strfreev(rs.queue);
-    settings = settings_json(cfg, exposure);
-    catalog_run_spec spec = {
-        .operator_name = oper, .object = object, .screen_id = screen_id, .mask_id = mask_id,
-        .camera_serial = rs.camera.serial[0] ? rs.camera.serial : NULL,
-        .camera_settings_json = settings, .frames_requested = (int)frames};
-    runner_spec sp = {0};
-    if (catalog_run_insert(d->cat, &spec, sp.uuid) != SL_OK) {
-        reply = reply_err(rq, "internal", "%s", catalog_errmsg(d->cat));
-        goto free_args;
-    }
-    sp.screen_slot = sc->slot, sp.mask_slot = mk->slot;
-    snprintf(sp.screen, sizeof sp.screen, "%s", sc->name);
-    snprintf(sp.mask, sizeof sp.mask, "%s", mk->name);
-    snprintf(sp.object, sizeof sp.object, "%s", object ? object : "");
-    snprintf(sp.method, sizeof sp.method, "%s", method ? method : cfg->reconstruct);
-    sp.frames = (int)frames;
-    sp.exposure_us = exposure;
-    sp.projections = (int)proj;
-    int ahead = 0;
-    char behind[CATALOG_UUID_LEN + 1];
-    char *ev = proto_event_state(sp.uuid, CATALOG_QUEUED, NULL);
-    server_event(d->srv, sp.uuid, ev);
-    g_free(ev);
-    runner_enqueue(d->run, &sp, &ahead, behind);
+    return reply;
+}
+
+static JsonNode *queued_node(const char *uuid, int ahead, const char *behind)
+{
     JsonBuilder *b = json_builder_new();
     json_builder_begin_object(b);
-    proto_add_str(b, "run", sp.uuid);
+    proto_add_str(b, "run", uuid);
     proto_add_str(b, "state", "queued");
     proto_add_int(b, "queue_position", ahead);
     proto_add_str(b, "queued_behind", behind[0] ? behind : NULL);
     json_builder_end_object(b);
     JsonNode *n = json_builder_get_root(b);
     g_object_unref(b);
-    reply = reply_ok(rq, n);
+    return n;
+}
+
+static char *cmd_start_run(request *rq)
+{
+    daemon_ctx *d = rq->d;
+    const config *cfg = d->cfg;
+    start_args a = {0};
+    char *reply = NULL, *settings = NULL;
+    int64_t screen_id = 0, mask_id = 0;
+    if ((reply = start_read(rq, &a)))
+        goto free_args;
+    if (catalog_screen_find(d->cat, a.sc->name, &screen_id) != SL_OK ||
+        catalog_mask_find(d->cat, a.mk->name, &mask_id) != SL_OK) {
+        reply = reply_err(rq, "internal", "%s", catalog_errmsg(d->cat));
+        goto free_args;
+    }
+    runner_status rs;
+    runner_status_get(d->run, &rs);
+    g_strfreev(rs.queue);
+    settings = settings_json(cfg, a.exposure_us);
+    catalog_run_spec spec = {
+        .operator_name = a.oper, .object = a.object, .screen_id = screen_id,
+        .mask_id = mask_id, .camera_serial = rs.camera.serial[0] ? rs.camera.serial : NULL,
+        .camera_settings_json = settings, .frames_requested = (int)a.frames, .kind = a.k};
+    runner_spec sp = {0};
+    if (catalog_run_insert(d->cat, &spec, sp.uuid) != SL_OK) {
+        reply = reply_err(rq, "internal", "%s", catalog_errmsg(d->cat));
+        goto free_args;
+    }
+    sp.screen_slot = a.sc->slot, sp.mask_slot = a.mk->slot;
+    snprintf(sp.screen, sizeof sp.screen, "%s", a.sc->name);
+    snprintf(sp.mask, sizeof sp.mask, "%s", a.mk->name);
+    snprintf(sp.object, sizeof sp.object, "%s", a.object ? a.object : "");
+    int calib = a.k == CATALOG_DARK || a.k == CATALOG_FLAT;
+    snprintf(sp.method, sizeof sp.method, "%s",
+             calib ? "none" : a.method ? a.method : cfg->reconstruct);
+    sp.frames = (int)a.frames;
+    sp.exposure_us = a.exposure_us;
+    sp.projections = (int)a.proj;
+    sp.kind = a.k;
+    int ahead = 0;
+    char behind[CATALOG_UUID_LEN + 1];
+    char *ev = proto_event_state(sp.uuid, CATALOG_QUEUED, NULL);
+    server_event(d->srv, sp.uuid, ev);
+    g_free(ev);
+    runner_enqueue(d->run, &sp, &ahead, behind);
+    reply = reply_ok(rq, queued_node(sp.uuid, ahead, behind));
 free_args:
-    g_free(screen), g_free(mask), g_free(object), g_free(oper), g_free(method);
+    start_args_clear(&a);
     g_free(settings);
     return reply;
 }
@@ -348,10 +386,10 @@ static char *cmd_reconstruct(request *rq)
         arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply))
         goto free_method;
     if (!method)
-        method = g_strdup(strcmp(d->cfg->reconstruct, "none") ? d->cfg->reconstruct : "tsm-fourier");
+        method = g_strdup(strcmp(d->cfg->reconstruct, "none") ? d->cfg->reconstruct : "auto");
     if (!config_method_valid(method) || !strcmp(method, "none")) {
-        reply = reply_err(rq, "bad-request", "method must be tsm, tsm-fourier or direct, got "
-                          "'%.40s'", method);
+        reply = reply_err(rq, "bad-request", "method must be auto, direct, tsm or tsm-fourier, "
+                          "got '%.40s'", method);
         goto free_method;
     }
     if (arg_run(rq, "run", 1, uuid, NULL, &reply))
@@ -363,6 +401,9 @@ static char *cmd_reconstruct(request *rq)
     if (r.state == CATALOG_QUEUED || r.state == CATALOG_MOVING || r.state == CATALOG_ACQUIRING)
         reply = reply_err(rq, "conflict", "run %s is %s: its cube is not complete yet", uuid,
                           catalog_state_name(r.state));
+    else if (r.kind == CATALOG_DARK || r.kind == CATALOG_FLAT)
+        reply = reply_err(rq, "bad-request", "run %s is a %s: calibration, not an image to "
+                          "reconstruct", uuid, catalog_kind_name(r.kind));
     else if (!r.file_path || !g_file_test(r.file_path, G_FILE_TEST_IS_REGULAR))
         reply = reply_err(rq, "not-found", "run %s has no cube on disk%s%s", uuid,
                           r.file_path ? ": " : "", r.file_path ? r.file_path : "");
@@ -403,9 +444,9 @@ static const command commands[] = {
     {"status", cmd_status, {NULL}},
     {"devices", cmd_devices, {NULL}},
     {"start-run", cmd_start_run, {"screen", "mask", "frames", "exposure_us", "object",
-                                  "operator", "reconstruct", "projections", NULL}},
+                                  "operator", "reconstruct", "projections", "kind", NULL}},
     {"abort-run", cmd_abort_run, {"run", NULL}},
-    {"runs", cmd_runs, {"state", "screen", "since", "limit", NULL}},
+    {"runs", cmd_runs, {"state", "screen", "since", "limit", "kind", NULL}},
     {"run", cmd_run, {"run", NULL}},
     {"screens", cmd_screens, {"since", NULL}},
     {"masks", cmd_masks, {NULL}},

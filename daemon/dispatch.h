@@ -26,8 +26,10 @@
 #include "runner.h"
 #include "server.h"
 #include "worker.h"
+#include "base/version.h"
 
-#define SPECKLABD_VERSION "0.5.0"
+/* status's "version": the one the programs print (recon/base/version.h) */
+#define SPECKLABD_VERSION SPECKLAB_VERSION
 
 typedef struct daemon_ctx {
     const config *cfg;

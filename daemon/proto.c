@@ -280,6 +280,7 @@ JsonNode *proto_run_node(catalog *c, const catalog_run *r)
     json_builder_begin_object(b);
     proto_add_str(b, "uuid", r->uuid);
     proto_add_str(b, "state", catalog_state_name(r->state));
+    proto_add_str(b, "kind", catalog_kind_name(r->kind ? r->kind : CATALOG_SCIENCE));
     proto_add_str(b, "exit_reason", r->exit_reason);
     proto_add_time(b, "created", r->created_ms);
     proto_add_time(b, "started", r->started_ms);

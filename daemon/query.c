@@ -201,13 +201,19 @@ static int add_run(const catalog_run *r, void *user)
 char *cmd_runs(request *rq)
 {
     daemon_ctx *d = rq->d;
-    char *state = NULL, *screen = NULL, *reply = NULL;
+    char *state = NULL, *screen = NULL, *kind = NULL, *reply = NULL;
     gint64 limit = 50;
     catalog_run_filter f = {0};
     if (arg_str(rq, "state", 0, 0, &state, &reply) ||
         arg_str(rq, "screen", 0, 1, &screen, &reply) || arg_since(rq, &f.since_ms, &reply) ||
-        arg_int(rq, "limit", 0, 1, 10000, &limit, NULL, &reply))
+        arg_int(rq, "limit", 0, 1, 10000, &limit, NULL, &reply) ||
+        arg_str(rq, "kind", 0, 0, &kind, &reply))
         goto free_args;
+    if (kind && catalog_kind_parse(kind, &f.kind) != SL_OK) {
+        reply = reply_err(rq, "bad-request", "kind must be science, dark, flat or calibrator, "
+                          "got '%.40s'", kind);
+        goto free_args;
+    }
     f.limit = (int)limit;
     if (state && (catalog_state_parse(state, &f.state) != SL_OK || f.state == CATALOG_STATE_ANY)) {
         reply = reply_err(rq, "bad-request", "state must be one of queued, moving, acquiring, "
@@ -239,6 +245,7 @@ char *cmd_runs(request *rq)
 free_args:
     g_free(state);
     g_free(screen);
+    g_free(kind);
     return reply;
 }
 

@@ -42,8 +42,9 @@ typedef struct runner_spec {
     int frames;
     double exposure_us;
     char object[72];
-    char method[16];        /* reconstruction: "tsm", ..., "none" */
+    char method[16];        /* reconstruction: "auto", ..., "none" */
     int projections;
+    catalog_kind kind;      /* science, dark, flat or calibrator */
 } runner_spec;
 
 /* What status and devices report, from the thread's last contact. */

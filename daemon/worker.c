@@ -12,6 +12,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include "calib.h"
 #include "catlock.h"
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
@@ -139,106 +140,129 @@ static int write_figure(const wjob *j, const pipeline_result *res, const char *p
     return skyfig_write_png(png, res->image, res->width, res->height, &f, e);
 }
 
-static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
-                       outputs *o, sl_err *e)
+static void job_opts(const worker *w, const wjob *j, pipeline_opts *po)
 {
-    pipeline_opts po;
-    pipeline_result res = {0};
-    binary_result br;
-    int rc;
-    pipeline_opts_defaults(&po);
-    if ((rc = pipeline_method_parse(j->method, &po.method)) != SL_OK)
-        return sl_seterr(e, rc, "unknown method '%s'", j->method);
-    po.nangles = j->projections > 0 ? j->projections : w->cfg->projections;
+    pipeline_opts_defaults(po);
+    pipeline_method_parse(j->method, &po->method);   /* checked by reconstruct */
+    po->nangles = j->projections > 0 ? j->projections : w->cfg->projections;
     /* MEASURE plans run several times faster than ESTIMATE ones but cost
      * ~1 s per new size to time: the wisdom file (loaded when the thread
      * starts, saved after each job) pays that once per size and machine. */
-    po.fftw_measure = w->cfg->fftw_measure;
-    po.tsm_corrected_phases = w->cfg->tsm_corrected_phases;
+    po->fftw_measure = w->cfg->fftw_measure;
+    po->tsm_corrected_phases = w->cfg->tsm_corrected_phases;
     /* Camera frames carry read noise on every pixel; the crop to the
      * speckle cloud keeps it out (a dm 2 companion at 1e4 photons, 2 e-:
      * lost by TSM on the whole 200^2 frame, found on the crop). */
-    po.skips = w->cfg->skips;
+    po->skips = w->cfg->skips;
     /* The binary is measured by every fit and judged (pipeline.h,
      * pipeline_binary): the closure phases' fit met 0.1 px / 0.5 deg /
      * 0.1 mag on 8 of 8 seeds at 5 lambda/D, dm 2, where the image fits
      * met 3 of 8 (direct) and 0 of 4 (TSM-Fourier). */
-    po.closure_binary = 1;
-    catalog_recon_init(rec);
-    rec->started_ms = catalog_now_ms();
-    if ((rc = pipeline_run(&cube, 1, &po, &res, e)) != SL_OK)
-        return rc;
-    if ((rc = output_paths(w, j, &o->fits, &o->png, e)) != SL_OK)
-        goto clear_result;
-    seq img = {res.width, res.height, 1, res.image};
-    snprintf(res.meta.creator, sizeof res.meta.creator, "specklabd %s", SPECKLAB_VERSION);
-    if ((rc = cube_write(o->fits, &img, &res.meta, e)) != SL_OK ||
-        (rc = write_figure(j, &res, o->png, e)) != SL_OK)
-        goto clear_result;
-    /* The verdict (recon/pipeline/pipeline_binary.c): the closure-phase fit, else
-     * the image fit, else the power spectrum's fringes; catalogued as a
-     * binary only when measured, or ambiguous (PA modulo 180 deg).  An
-     * unresolved or inconsistent pair keeps no numbers, and says why. */
-    const pipeline_binary *v = &res.binary;
+    po->closure_binary = 1;
+}
+
+/* The verdict (recon/pipeline/pipeline_binary.c): the closure-phase fit,
+ * else the image fit, else the power spectrum's fringes; catalogued as a
+ * binary only when measured, or ambiguous (PA modulo 180 deg).  An
+ * unresolved or inconsistent pair keeps no numbers, and says why.
+ * Returns where the numbers came from ("none" when not found). */
+static const char *verdict(const pipeline_binary *v, binary_result *br)
+{
     int found = v->source != PIPE_BIN_SRC_NONE &&
                 (v->status == PIPE_BIN_MEASURED || v->status == PIPE_BIN_AMBIGUOUS);
-    const char *binary_src = !found ? "none" : v->source == PIPE_BIN_SRC_CLOSURE
-                             ? "closure-phase" : pipeline_binary_source_name(v->source);
-    memset(&br, 0, sizeof br);
-    if (found) {
-        const binary_result *fit = v->source == PIPE_BIN_SRC_CLOSURE ? &v->closure
-                                 : v->source == PIPE_BIN_SRC_IMAGE ? &v->image : NULL;
-        if (fit)
-            br = *fit;
-        br.sep_px = v->sep_px, br.sep_err_px = v->sep_err_px;
-        br.pa_deg = v->pa_deg, br.pa_err_deg = v->pa_err_deg;
-        br.dm_mag = v->dm_mag, br.dm_err_mag = v->dm_err_mag;
+    memset(br, 0, sizeof *br);
+    if (!found)
+        return "none";
+    const binary_result *fit = v->source == PIPE_BIN_SRC_CLOSURE ? &v->closure
+                             : v->source == PIPE_BIN_SRC_IMAGE ? &v->image : NULL;
+    if (fit)
+        *br = *fit;
+    br->sep_px = v->sep_px, br->sep_err_px = v->sep_err_px;
+    br->pa_deg = v->pa_deg, br->pa_err_deg = v->pa_err_deg;
+    br->dm_mag = v->dm_mag, br->dm_err_mag = v->dm_err_mag;
+    return v->source == PIPE_BIN_SRC_CLOSURE ? "closure-phase"
+                                             : pipeline_binary_source_name(v->source);
+}
+
+/* What ran, as the catalogue's params (PROTOCOL.md's recon object). */
+static char *params_json(const wjob *j, const pipeline_opts *po, const pipeline_result *res,
+                         const calib_set *cal, const char *binary_src)
+{
+    const pipeline_binary *v = &res->binary;
+    JsonBuilder *b = json_builder_new();
+    json_builder_begin_object(b);
+    proto_add_str(b, "method", j->method);
+    /* auto's choice, so that the catalogue says what ran */
+    proto_add_str(b, "ran", pipeline_method_name(res->report.method));
+    if (res->report.probe.chosen)
+        proto_add_str(b, "chosen", res->report.probe.chosen_label);
+    if (res->report.method != PIPE_DIRECT) {   /* pipeline.h: 0 means 180 */
+        proto_add_int(b, "projections", res->report.nangles > 0 ? res->report.nangles
+                                       : po->nangles > 0 ? po->nangles : 180);
+        /* what ran: corrected needs the cube's photon statistics */
+        proto_add_str(b, "tsm_phases", res->report.corrected_phases ? "corrected" : "raw");
     }
-    double scale = isfinite(res.plate_scale_arcsec) ? res.plate_scale_arcsec
-                                                    : w->cfg->plate_scale_arcsec;
+    proto_add_bool(b, "prep", po->prep);
+    calib_json(cal, b);
+    char skips[64];
+    pipeline_skips_name(po->skips, skips, sizeof skips);
+    proto_add_str(b, "skips", skips);
+    proto_add_str(b, "fftw", po->fftw_measure ? "measure" : "estimate");
+    proto_add_str(b, "binary", binary_src); /* where sep/PA/dm came from */
+    proto_add_str(b, "binary_status", pipeline_binary_status_name(v->status));
+    if (v->why[0])
+        proto_add_str(b, "binary_why", v->why);
+    json_builder_end_object(b);
+    return json_text(b);
+}
+
+static char *quality_json(const pipeline_result *res, double scale, int found,
+                          const binary_result *br)
+{
+    JsonBuilder *b = json_builder_new();
+    json_builder_begin_object(b);
+    proto_add_int(b, "nframes", res->nframes);
+    proto_add_int(b, "width", res->width);
+    proto_add_int(b, "height", res->height);
+    proto_add_dbl(b, "plate_scale_arcsec", scale);
+    proto_add_bool(b, "binary_found", found);
+    if (found) {
+        proto_add_dbl(b, "flux_ratio", br->flux_ratio);
+        proto_add_dbl(b, "flux_ratio_err", br->flux_ratio_err);
+        proto_add_dbl(b, "noise", br->noise);
+    }
+    json_builder_end_object(b);
+    return json_text(b);
+}
+
+/* Write the image and its figure, then the catalogue row from them. */
+static int record(worker *w, const wjob *j, pipeline_result *res, const char *params,
+                  catalog_recon *rec, outputs *o, sl_err *e)
+{
+    int rc;
+    if ((rc = output_paths(w, j, &o->fits, &o->png, e)) != SL_OK)
+        return rc;
+    seq img = {res->width, res->height, 1, res->image};
+    snprintf(res->meta.creator, sizeof res->meta.creator, "specklabd %s", SPECKLAB_VERSION);
+    if ((rc = cube_write(o->fits, &img, &res->meta, e)) != SL_OK ||
+        (rc = write_figure(j, res, o->png, e)) != SL_OK)
+        return rc;
+    binary_result br;
+    int found = strcmp(verdict(&res->binary, &br), "none") != 0;
+    double scale = isfinite(res->plate_scale_arcsec) ? res->plate_scale_arcsec
+                                                     : w->cfg->plate_scale_arcsec;
     if (found) {
         rec->sep_px = br.sep_px, rec->sep_err_px = br.sep_err_px;
         rec->pa_deg = br.pa_deg, rec->pa_err_deg = br.pa_err_deg;
         rec->dm_mag = br.dm_mag, rec->dm_err_mag = br.dm_err_mag;
         rec->sep_arcsec = br.sep_px * scale;
     }
-    JsonBuilder *b = json_builder_new();
-    json_builder_begin_object(b);
-    proto_add_str(b, "method", j->method);
-    if (po.method != PIPE_DIRECT) {   /* pipeline.h: 0 means 180 */
-        proto_add_int(b, "projections", po.nangles > 0 ? po.nangles : 180);
-        /* what ran: corrected needs the cube's photon statistics */
-        proto_add_str(b, "tsm_phases", res.report.corrected_phases ? "corrected" : "raw");
-    }
-    proto_add_bool(b, "prep", po.prep);
-    char skips[64];
-    pipeline_skips_name(po.skips, skips, sizeof skips);
-    proto_add_str(b, "skips", skips);
-    proto_add_str(b, "fftw", po.fftw_measure ? "measure" : "estimate");
-    proto_add_str(b, "binary", binary_src); /* where sep/PA/dm came from */
-    proto_add_str(b, "binary_status", pipeline_binary_status_name(v->status));
-    if (v->why[0])
-        proto_add_str(b, "binary_why", v->why);
-    json_builder_end_object(b);
-    o->params = json_text(b);
-    b = json_builder_new();
-    json_builder_begin_object(b);
-    proto_add_int(b, "nframes", res.nframes);
-    proto_add_int(b, "width", res.width);
-    proto_add_int(b, "height", res.height);
-    proto_add_dbl(b, "plate_scale_arcsec", scale);
-    proto_add_bool(b, "binary_found", found);
-    if (found) {
-        proto_add_dbl(b, "flux_ratio", br.flux_ratio);
-        proto_add_dbl(b, "flux_ratio_err", br.flux_ratio_err);
-        proto_add_dbl(b, "noise", br.noise);
-    }
-    json_builder_end_object(b);
-    o->quality = json_text(b);
+    o->params = g_strdup(params);
+    o->quality = quality_json(res, scale, found, &br);
     rec->run_uuid = j->uuid;
     rec->method = j->method;
     rec->params_json = o->params;
-    rec->elapsed_s = res.elapsed_s;
+    rec->elapsed_s = res->elapsed_s;
     rec->output_fits = o->fits;
     rec->output_png = o->png;
     rec->quality_json = o->quality;
@@ -246,12 +270,40 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     snprintf(what, sizeof what, "run %s: recording its reconstruction", j->uuid);
     if ((rc = catlock_write(w->cat, &w->cl, what, insert_recon, rec)) != SL_OK)
         sl_seterr(e, rc, "%s", catalog_errmsg(w->cat));
-clear_result:
+    return rc;
+}
+
+/* Reconstruct, write, measure, catalogue. */
+static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
+                       outputs *o, sl_err *e)
+{
+    pipeline_opts po;
+    pipeline_result res = {0};
+    calib_set cal;
+    char *params = NULL;
+    int m;
+    if (pipeline_method_parse(j->method, &m) != SL_OK)
+        return sl_seterr(e, SL_EINVAL, "unknown method '%s'", j->method);
+    job_opts(w, j, &po);
+    int rc = calib_find(w->cat, w->cfg, j->uuid, &cal, e);
+    if (rc != SL_OK)
+        return rc;
+    calib_apply(&cal, &po);
+    catalog_recon_init(rec);
+    rec->started_ms = catalog_now_ms();
+    if ((rc = pipeline_run(&cube, 1, &po, &res, e)) != SL_OK)
+        goto clear_calib;
+    binary_result br;
+    params = params_json(j, &po, &res, &cal, verdict(&res.binary, &br));
+    rc = record(w, j, &res, params, rec, o, e);
     if (rc != SL_OK && o->fits) {   /* no row: leave no orphan files */
         unlink(o->fits);
         unlink(o->png);
     }
+    g_free(params);
     pipeline_result_clear(&res);
+clear_calib:
+    calib_clear(&cal);
     return rc;
 }
 

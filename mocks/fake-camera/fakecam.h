@@ -133,8 +133,14 @@ static inline int fakecam_scene(const fakecam_model *m, scene **out, sl_err *err
 }
 
 /* A mask slot entry: a built-in name ("full", "nrm17") or a mask file. */
+/* "closed": a blank slot, *out NULL: no light reaches the sensor (the
+ * bench's darks); the frames are the bias (render.c). */
 static inline int fakecam_mask(const char *name, mask **out, sl_err *err)
 {
+    if (strcmp(name, "closed") == 0) {
+        *out = NULL;
+        return SL_OK;
+    }
     if (strcmp(name, "full") == 0 || strcmp(name, "nrm17") == 0)
         return mask_named(out, name, err);
     return mask_read(out, name, err);

@@ -309,7 +309,7 @@ int main(int argc, char **argv)
         {"wavelength-nm", 0, 0, G_OPTION_ARG_DOUBLE, &o->wavelength_nm, "laser wavelength (default 633)", "NM"},
         {"plate-scale-arcsec", 0, 0, G_OPTION_ARG_DOUBLE, &o->plate_scale, "arcsec per pixel; 0 = Nyquist for 1.1 m (default)", "ARCSEC"},
         {"screen-r0", 0, 0, G_OPTION_ARG_STRING, &o->screen_r0, "r0 [m] per screen slot, inf = open (default inf,0.25,0.15,0.10,0.07,0.05)", "LIST"},
-        {"mask-slots", 0, 0, G_OPTION_ARG_STRING, &o->mask_slots, "pupil per mask slot: full, nrm17 or a mask file (default full,nrm17)", "LIST"},
+        {"mask-slots", 0, 0, G_OPTION_ARG_STRING, &o->mask_slots, "pupil per mask slot: full, nrm17, closed (no light: bias frames) or a mask file (default full,nrm17)", "LIST"},
         {"screen-slot", 0, 0, G_OPTION_ARG_INT, &o->screen_slot, "screen slot without --stage (default 1)", "N"},
         {"mask-slot", 0, 0, G_OPTION_ARG_INT, &o->mask_slot, "mask slot without --stage (default 0)", "N"},
         {"stage", 0, 0, G_OPTION_ARG_STRING, &o->stage, "poll the stage at HOST:PORT (Modbus/TCP) for the slots", "HOST:PORT"},

@@ -124,6 +124,8 @@ static sim *get_sim(renderer *r, const beam *b, uint32_t exposure_us, uint32_t g
                   r->nmasks);
         return NULL;
     }
+    if (!r->masks[b->mask])
+        return NULL;   /* a closed slot: dark, and no error */
     cache_entry *victim = &r->cache[0];
     for (int i = 0; i < FAKECAM_CACHE; i++) {
         cache_entry *e = &r->cache[i];

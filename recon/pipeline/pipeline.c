@@ -14,8 +14,6 @@
 #include "pipeline_int.h"
 #include "tsm/tsm.h"
 
-static const char *method_names[] = {"direct", "tsm", "tsm-fourier", "auto"};
-
 void pipeline_opts_defaults(pipeline_opts *o)
 {
     memset(o, 0, sizeof *o);
@@ -31,21 +29,6 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->skips = -1;
     o->refine_iters = -1;
     o->phase_weight = -1;
-}
-
-int pipeline_method_parse(const char *name, int *method)
-{
-    for (int i = 0; i < 4; i++)
-        if (strcmp(name, method_names[i]) == 0) {
-            *method = i;
-            return SL_OK;
-        }
-    return SL_EINVAL;
-}
-
-const char *pipeline_method_name(int method)
-{
-    return method >= 0 && method < 4 ? method_names[method] : "unknown";
 }
 
 void pipeline_result_clear(pipeline_result *r)

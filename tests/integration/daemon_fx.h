@@ -57,6 +57,7 @@ typedef struct bench {
     char data[200], sock[200], conf[200], dlog[200], clog[200];
     char db[300];                 /* the catalogue: DATA/specklab.db unless moved */
     char cam_size[16];
+    char cam_masks[64];           /* the fake camera's --mask-slots; "": its default */
     fx_proc stage, cam, daemon;
     int port;
     void (*daemon_pre)(void *);   /* e.g. limits, before exec */
@@ -115,7 +116,11 @@ static inline int bench_start_camera(bench *b)
     char bin[PATH_MAX], line[256], stage[64];
     snprintf(stage, sizeof stage, "127.0.0.1:%d", b->port);
     char *argv[] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
-                    "--seed", "5", "-q", NULL};
+                    "--seed", "5", "-q", NULL, NULL, NULL};
+    if (b->cam_masks[0]) {
+        argv[10] = "--mask-slots";
+        argv[11] = b->cam_masks;
+    }
     fx_bin(bin, sizeof bin, "specklab-fake-camera");
     if (fx_spawn(&b->cam, argv, b->clog, NULL, NULL) != 0 ||
         fx_wait_ready(&b->cam, line, sizeof line, 20) != 0)

@@ -6,8 +6,8 @@
  * camera and specklabd in a private network namespace (GVCP's port 3956
  * is fixed), every start synchronised on a READY line.  The sequence:
  *   1. one long run (SOAK_LONG_FRAMES, 10000) on screen 1, reconstructed
- *      with the daemon's default method (tsm-fourier streams the 330 MB
- *      cube in ~10 s; SOAK_LONG_RECON=none skips it);
+ *      with the daemon's default method (auto; SOAK_LONG_RECON=none
+ *      skips it, =tsm-fourier streams the 330 MB cube in ~10 s);
  *   2. SOAK_RUNS (50) short runs of SOAK_SHORT_FRAMES (100), each on
  *      another screen/mask slot pair (every stage move a screen swap),
  *      reconstructed with the daemon's default method.  Run k+1 is

@@ -1,11 +1,30 @@
-/* pipeline_skip_names.c - the names of the pipeline's skips (PIPE_SKIP_*):
- * parse a list and print one.  Apart from pipeline_selection.c so that a
- * configuration reader (specklabd's) can check a skips list without
- * linking the estimators. */
+/* pipeline_names.c - the names of the pipeline's methods (enum
+ * pipeline_method) and skips (PIPE_SKIP_*): parse and print them.  Apart
+ * from the estimators so that a configuration reader (specklabd's) can
+ * check a method or a skips list without linking them. */
 #include <stdio.h>
 #include <string.h>
 
 #include "pipeline.h"
+
+/* in enum pipeline_method's order */
+static const char *const method_names[] = {"direct", "tsm", "tsm-fourier", "auto"};
+#define NMETHODS ((int)(sizeof method_names / sizeof method_names[0]))
+
+int pipeline_method_parse(const char *name, int *method)
+{
+    for (int i = 0; name && i < NMETHODS; i++)
+        if (strcmp(name, method_names[i]) == 0) {
+            *method = i;
+            return SL_OK;
+        }
+    return SL_EINVAL;
+}
+
+const char *pipeline_method_name(int method)
+{
+    return method >= 0 && method < NMETHODS ? method_names[method] : "unknown";
+}
 
 static const struct {
     const char *name;

@@ -1,0 +1,220 @@
+/* test_daemon_calib.c - calibration frames through specklabd (daemon/
+ * calib.h), on a simulated bench whose mask slot 0 is closed (the fake
+ * camera renders only the bias there: the bench's darks):
+ *   catalogued_dark   dark runs are catalogued as kind dark, never
+ *                     reconstructed, carry IMAGETYP 'dark' and no r0; a
+ *                     science run's reconstruction uses the dark of its
+ *                     own exposure (not a nearer one of another exposure)
+ *                     and says which in its params, and still measures
+ *                     the binary; wrong kinds and reconstructing a dark
+ *                     are refused by name;
+ *   configured_files  [calibration] dark names a file that every
+ *                     reconstruction uses instead of the catalogue's;
+ *                     a missing file stops the daemon at start-up with
+ *                     the key in the message.
+ */
+#include "daemon_fx.h"
+
+#include <glib.h>
+
+#define SEP_ARCSEC 0.7   /* the fake camera's binary */
+#define PA_DEG 30.0
+#define BIAS_ADU 100.0
+
+static int has(const char *hay, const char *needle)
+{
+    return hay && needle && strstr(hay, needle) != NULL;
+}
+
+/* A bench whose camera sees nothing through mask slot 0; conf as in
+ * bench_write_config. */
+static int calib_up(bench *b, const char *conf)
+{
+    if (bench_init(b) != 0)
+        return -1;
+    snprintf(b->cam_masks, sizeof b->cam_masks, "closed,nrm17");
+    return bench_start_stage(b, NULL) || bench_start_camera(b) || bench_write_config(b, conf) ||
+                   bench_start_daemon(b)
+               ? -1
+               : 0;
+}
+
+/* Run args to completion; its uuid into out.  0 when it ended done. */
+static int run_done(bench *b, dc *c, const char *args, char out[40])
+{
+    JsonNode *r = keep(b, dc_call(c, "start-run", args, 5));
+    if (!jok(r))
+        return -1;
+    snprintf(out, 40, "%s", js(r, "result.run"));
+    JsonNode *e = keep(b, dc_wait_state(c, out, "done,failed,aborted", 90, NULL, NULL));
+    return e && has(js(e, "state"), "done") ? 0 : -1;
+}
+
+/* The run object and its reconstructions ("result" of `run`). */
+static JsonNode *run_info(bench *b, dc *c, const char *uuid)
+{
+    char args[96];
+    snprintf(args, sizeof args, "{\"run\": \"%s\"}", uuid);
+    JsonNode *r = keep(b, dc_call(c, "run", args, 5));
+    return jok(r) ? jget(r, "result") : NULL;
+}
+
+/* Mean pixel and IMAGETYP of a cube. */
+static int cube_facts(const char *path, double *mean, char type[FLEN_VALUE])
+{
+    fitsfile *f = NULL;
+    int s = 0, anynul = 0;
+    long nax[3] = {0, 0, 0};
+    type[0] = 0;
+    fits_open_diskfile(&f, path, READONLY, &s);
+    fits_read_key(f, TSTRING, "IMAGETYP", type, NULL, &s);
+    fits_get_img_size(f, 3, nax, &s);
+    long n = nax[0] * nax[1] * (nax[2] > 0 ? nax[2] : 1);
+    double *v = n > 0 ? g_new(double, n) : NULL;
+    fits_read_img(f, TDOUBLE, 1, n, NULL, v, &anynul, &s);
+    double sum = 0;
+    for (long i = 0; s == 0 && i < n; i++)
+        sum += v[i];
+    *mean = n > 0 ? sum / n : NAN;
+    g_free(v);
+    if (f) {
+        int s2 = 0;
+        fits_close_file(f, &s2);
+    }
+    return s;
+}
+
+static void catalogued_dark_body(tc *t, bench *b)
+{
+    dc *c = bench_client(b);
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    JsonNode *r = keep(b, dc_call(c, "start-run", "{\"screen\": 1, \"mask\": 0, \"frames\": 5, "
+                                  "\"kind\": \"dark\", \"reconstruct\": \"direct\"}", 5));
+    CHECK(!jok(r) && has(js(r, "error.code"), "bad-request") &&
+          has(js(r, "error.message"), "dark"), "a dark to reconstruct: %s", jtext(r));
+    r = keep(b, dc_call(c, "start-run", "{\"screen\": 1, \"mask\": 0, \"frames\": 5, "
+                        "\"kind\": \"bias\"}", 5));
+    CHECK(!jok(r) && has(js(r, "error.message"), "kind"), "kind bias: %s", jtext(r));
+
+    char dark_a[40], dark_b[40], sci[40];
+    /* the matching dark first, then a nearer one of another exposure */
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 0, \"frames\": 10, \"kind\": \"dark\"}",
+                   dark_a) == 0, "dark run at the default exposure");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 0, \"frames\": 10, \"kind\": \"dark\", "
+                   "\"exposure_us\": 5000}", dark_b) == 0, "dark run at 5 ms");
+    JsonNode *d = run_info(b, c, dark_a);
+    CHECK(d && has(js(d, "run.kind"), "dark") && !jget(d, "reconstructions.0") &&
+          jnull(d, "run.r0_m"), "dark run: %s", jtext(d));
+    double mean = NAN;
+    char type[FLEN_VALUE];
+    CHECK(cube_facts(js(d, "run.file"), &mean, type) == 0 && !strcmp(type, "dark") &&
+          fabs(mean - BIAS_ADU) < 1, "dark cube: IMAGETYP '%s', mean %.2f ADU (bias %g)", type,
+          mean, BIAS_ADU);
+
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
+                   "\"reconstruct\": \"direct\"}", sci) == 0, "science run");
+    d = run_info(b, c, sci);
+    JsonNode *rec = d ? jget(d, "reconstructions.0") : NULL;
+    CHECK(rec && has(js(d, "run.kind"), "science"), "science run: %s", jtext(d));
+    const char *used = js(rec, "params.dark.run");
+    CHECK(used && !strcmp(used, dark_a), "dark used %s; want %s (same exposure), not %s",
+          used ? used : "(none)", dark_a, dark_b);
+    CHECK(has(js(rec, "params.dark.file"), dark_a) && !jget(rec, "params.flat"),
+          "params %s", jtext(jget(rec, "params")));
+    double sep = jd(rec, "sep_arcsec"), pa = jd(rec, "pa_deg");
+    CHECK(fabs(sep - SEP_ARCSEC) <= 0.03 * SEP_ARCSEC && fabs(pa - PA_DEG) <= 1.5,
+          "dark-subtracted binary: %.4f arcsec, PA %.2f (truth %.2f, %.1f)", sep, pa,
+          SEP_ARCSEC, PA_DEG);
+
+    r = keep(b, dc_call(c, "runs", "{\"kind\": \"dark\"}", 5));
+    CHECK(jok(r) && jget(r, "result.runs.1") && !jget(r, "result.runs.2") &&
+          has(js(r, "result.runs.0.kind"), "dark"), "runs of kind dark: %s", jtext(r));
+    char args[96];
+    snprintf(args, sizeof args, "{\"run\": \"%s\"}", dark_a);
+    r = keep(b, dc_call(c, "reconstruct", args, 5));
+    CHECK(!jok(r) && has(js(r, "error.message"), "dark"), "reconstruct a dark: %s", jtext(r));
+}
+
+static void catalogued_dark_run(tc *t)
+{
+    bench b;
+    if (calib_up(&b, NULL) != 0) {
+        tc_note(t, 0, __FILE__, __LINE__, "bench", "bench did not start");
+        bench_down(&b, 1);
+        return;
+    }
+    catalogued_dark_body(t, &b);
+    bench_check_stop(t, &b);
+    bench_down(&b, t->failed);
+}
+
+TEST(catalogued_dark) { fx_in_netns(t, catalogued_dark_run, 240); }
+
+/* A dark file of the bench's frames: bias only (64x64, the fixture's). */
+static int write_dark(const char *path, double level)
+{
+    fitsfile *f = NULL;
+    int s = 0;
+    long nax[2] = {64, 64};
+    float v[64 * 64];
+    for (int i = 0; i < 64 * 64; i++)
+        v[i] = (float)level;
+    fits_create_diskfile(&f, path, &s);
+    fits_create_img(f, FLOAT_IMG, 2, nax, &s);
+    fits_write_img(f, TFLOAT, 1, 64 * 64, v, &s);
+    fits_close_file(f, &s);
+    return s;
+}
+
+static void configured_files_body(tc *t, bench *b, const char *dark)
+{
+    dc *c = bench_client(b);
+    char dark_run[40], sci[40];
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 0, \"frames\": 10, \"kind\": \"dark\"}",
+                   dark_run) == 0, "dark run");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 40, "
+                   "\"reconstruct\": \"tsm-fourier\"}", sci) == 0, "science run");
+    JsonNode *d = run_info(b, c, sci);
+    JsonNode *rec = d ? jget(d, "reconstructions.0") : NULL;
+    CHECK(rec && has(js(rec, "params.dark.file"), dark) && !jget(rec, "params.dark.run"),
+          "the configured file, not the dark run: %s", jtext(jget(rec, "params")));
+}
+
+static void configured_files_run(tc *t)
+{
+    bench b;
+    char dark[300], conf[400], err[512] = "";
+    if (bench_init(&b) != 0)
+        return;
+    snprintf(dark, sizeof dark, "%s/dark.fits", b.dir);
+    snprintf(b.cam_masks, sizeof b.cam_masks, "closed,nrm17");
+    snprintf(conf, sizeof conf, "[calibration]\ndark=%s/none.fits\n", b.dir);
+    /* a missing file: the daemon refuses to start, naming the key */
+    int bad_start = bench_start_stage(&b, NULL) || bench_start_camera(&b) ||
+                    bench_write_config(&b, conf) || bench_start_daemon(&b);
+    gchar *log = NULL;
+    g_file_get_contents(b.dlog, &log, NULL, NULL);
+    int named = has(log, "[calibration] dark") && has(log, "none.fits");
+    g_free(log);
+    fx_stop(&b.daemon, SIGKILL, 5);
+    snprintf(conf, sizeof conf, "[calibration]\ndark=%s\n", dark);
+    if (!bad_start || !named)
+        snprintf(err, sizeof err, "a missing dark: started %d, named in the log %d", !bad_start,
+                 named);
+    else if (write_dark(dark, BIAS_ADU) != 0 || bench_write_config(&b, conf) ||
+             bench_start_daemon(&b))
+        snprintf(err, sizeof err, "the daemon did not start with dark=%s", dark);
+    if (err[0])
+        tc_note(t, 0, __FILE__, __LINE__, "start-up", "%s", err);
+    else
+        configured_files_body(t, &b, dark);
+    bench_check_stop(t, &b);
+    bench_down(&b, t->failed);
+}
+
+TEST(configured_files) { fx_in_netns(t, configured_files_run, 240); }
+
+TC_MAIN(TC_CASE(catalogued_dark), TC_CASE(configured_files))

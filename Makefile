@@ -256,7 +256,7 @@ bench: all
 	    --md out/bench/quick.md \
 	    && bin/specklab bench --speed --overwrite --csv out/bench/speed.csv --png out/bench/speed.png \
 	    --md out/bench/speed.md \
-	    && bin/specklab bench --blind --quick --csv out/bench/blind-quick.csv
+	    && bin/specklab bench --blind --quick --overwrite --csv out/bench/blind-quick.csv
 
 # The numerical-stability suite with its slow cases too.
 stress: all

@@ -9,6 +9,7 @@
 #include <glib/gstdio.h>
 
 #include "bench_blind.h"
+#include "outfile.h"
 #include "sim/sim_file.h"
 #include "pipeline/pipeline.h"
 #include "sim/sim.h"
@@ -391,23 +392,51 @@ static char *work_dir(const blind_opts *o)
     return d;
 }
 
-/* The CSV's directory (out/bench by default) is made when missing. */
-static int write_csv(const blind_opts *o, const blind_row *rows, int n)
+static const char *csv_path(const blind_opts *o)
 {
-    const char *path = o->csv ? o->csv : o->quick ? "out/bench/blind-quick.csv"
-                                                  : "out/bench/blind.csv";
+    return o->csv ? o->csv : o->quick ? "out/bench/blind-quick.csv" : "out/bench/blind.csv";
+}
+
+/* The CSV by outfile.h's rules, checked before anything runs (a refusal
+ * after the matrix would waste it); its directory (out/bench by default)
+ * is made when missing.  0, 1 (cannot) or 2 (exists, no --overwrite). */
+static int csv_ok(const blind_opts *o)
+{
+    const char *path = csv_path(o);
     if (!strcmp(path, "none"))
         return 0;
     char *dir = g_path_get_dirname(path);
     int bad = g_mkdir_with_parents(dir, 0755) != 0;
     if (bad)
-        fprintf(stderr, "specklab bench: cannot create %s: %s\n", dir,
-                g_strerror(errno));
+        fprintf(stderr, "specklab bench: cannot create %s: %s\n", dir, g_strerror(errno));
     g_free(dir);
-    if (bad || blind_write_csv(path, rows, n))
-        return 1;
-    printf("# wrote %s (%d rows)\n", path, n);
-    return 0;
+    GError *ge = NULL;
+    if (!bad && !outfile_check(path, o->overwrite, NULL, 0, &ge)) {
+        fprintf(stderr, "specklab bench: %s\n", ge->message);
+        g_error_free(ge);
+        return 2;
+    }
+    return bad;
+}
+
+/* Written through a temporary, renamed over the name when whole. */
+static int write_csv(const blind_opts *o, const blind_row *rows, int n)
+{
+    const char *path = csv_path(o);
+    if (!strcmp(path, "none"))
+        return 0;
+    outfile f;
+    GError *ge = NULL;
+    int bad = !outfile_begin(&f, path, o->overwrite, NULL, 0, &ge) ||
+              blind_write_csv(f.tmp, rows, n) || !outfile_commit(&f, &ge);
+    if (ge) {
+        fprintf(stderr, "specklab bench: %s\n", ge->message);
+        g_error_free(ge);
+    }
+    outfile_clear(&f);
+    if (!bad)
+        printf("# wrote %s (%d rows)\n", path, n);
+    return bad;
 }
 
 /* The options that make sense here; auto's target into *target. */
@@ -436,11 +465,14 @@ int blind_run(const blind_opts *o)
     int ncond = blind_matrix(o->quick && !o->conditions, o->seed, conds,
                              BLIND_MAX_CONDITIONS);
     blind_ctx c = {o, NULL, {0}, 0, 0, NULL};
+    int rc;
     if (check_options(o, &c.target) ||
         parse_methods(o->methods ? o->methods : DEFAULT_METHODS, c.methods,
                       &c.nmethods) ||
         (o->conditions && select_conditions(o->conditions, conds, &ncond)))
         return 2;
+    if ((rc = csv_ok(o)) != 0)
+        return rc;
     if (!(c.dir = work_dir(o)))
         return 1;
     c.rows = g_array_new(FALSE, FALSE, sizeof(blind_row));
@@ -457,7 +489,7 @@ int blind_run(const blind_opts *o)
     int nrows = (int)c.rows->len;
     blind_print_summary(rows, nrows, c.methods, c.nmethods);
     printf("# total %.1f s\n", cli_now_s() - t0);
-    int rc = write_csv(o, rows, nrows);
+    rc = write_csv(o, rows, nrows);
     if (!o->dir)
         g_rmdir(c.dir);
     g_free(c.dir);

@@ -65,6 +65,7 @@ typedef struct blind_opts {
     uint64_t seed;
     int other_options;      /* options of the other presets were given:
                              * refused */
+    int overwrite;          /* replace an existing CSV (cli/outfile.h) */
 } blind_opts;
 
 /* One condition x method. */

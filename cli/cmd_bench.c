@@ -416,7 +416,8 @@ static int run_blind(const bench_args *a)
                     a->paper || a->speed || a->skips_report || a->scenes ||
                     a->sizes || a->frames || a->photons || a->projections ||
                     a->r2 || a->seps || a->dms || a->ref || a->skips ||
-                    a->catalog || a->png || a->md || a->interval_ms > 0};
+                    a->catalog || a->png || a->md || a->interval_ms > 0,
+                    a->overwrite};
     return blind_run(&o);
 }
 

@@ -210,7 +210,19 @@ TEST(blind_option_errors_are_named)
     int method_named = f.err && strstr(f.err, "'fast'");
     int rt = bench(&f, "--blind", "--target-error", "0.1,0.2", "--csv", "none", NULL);
     int target_named = f.err && strstr(f.err, "--target-error '0.1,0.2'");
+    /* an existing CSV: refused before the matrix runs, left as it was */
+    char *csv = g_strdup_printf("%s/kept.csv", f.dir);
+    g_file_set_contents(csv, "earlier results\n", -1, NULL);
+    int rx = bench(&f, "--blind", "--quick", "--csv", csv, NULL);
+    int exists_named = f.err && strstr(f.err, "kept.csv") && strstr(f.err, "--overwrite") &&
+                       f.out && !strstr(f.out, "baseline");
+    gchar *kept = NULL;
+    g_file_get_contents(csv, &kept, NULL, NULL);
+    g_free(csv);
     fx_stop(&f);
+    CHECK(rx == 2 && exists_named && kept && !strcmp(kept, "earlier results\n"),
+          "an existing CSV: exit %d, named %d, now '%s'", rx, exists_named, kept ? kept : "");
+    g_free(kept);
     CHECK(rp == 2 && paper_named, "--paper: exit %d", rp);
     CHECK(rc == 2 && listed, "--conditions nope: exit %d", rc);
     CHECK(rn == 2 && needs, "--conditions without --blind: exit %d", rn);

@@ -62,14 +62,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
  * drifts from the protocol is a finding. */
 static const struct proto_cmd {
     const char *name;
-    const char *args[9];
+    const char *args[10];
 } protocol[] = {
     {"status", {NULL}},
     {"devices", {NULL}},
     {"start-run", {"screen", "mask", "frames", "exposure_us", "object", "operator",
-                   "reconstruct", "projections", NULL}},
+                   "reconstruct", "projections", "kind", NULL}},
     {"abort-run", {"run", NULL}},
-    {"runs", {"state", "screen", "since", "limit", NULL}},
+    {"runs", {"state", "screen", "since", "limit", "kind", NULL}},
     {"run", {"run", NULL}},
     {"screens", {"since", NULL}},
     {"masks", {NULL}},

@@ -319,7 +319,9 @@ FUZZ_CONFIG_SRC := daemon/config.c recon/base/status.c recon/pipeline/pipeline_n
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c recon/pipeline/pipeline_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
+                     daemon/config.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
+                     recon/pipeline/pipeline_optset.c recon/pipeline/pipeline_check.c \
+                     $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
 
 $(FUZZ_BUILD)/fuzz_fits $(FUZZ_BUILD)/fuzz_fits_list: $(FUZZ_BUILD)/%: tests/fuzz/%.c $(FUZZ_FITS_SRC) recon/io/cube.h recon/io/cube_guard.h recon/io/cube_header.h recon/io/datasum.h tests/fuzz/fuzz_util.h tests/fuzz/fuzz_cube_util.h

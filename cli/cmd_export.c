@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "cmd_daemon.h"
 #include "outfile.h"
+#include "pipeline/pipeline.h"
 
 #define COPY_CHUNK (1 << 20)
 /* On-demand reconstruction of a long cube can take minutes. */
@@ -387,61 +388,123 @@ static int copy_out(client *c, JsonObject *x, const char *key, const char *dst,
     return rc != 0;
 }
 
+#define RUN_OPTS_MAX 32
+
+/* recon's reconstruction options for a catalogued run: every name
+ * pipeline_opts_set knows (the daemon parses them with it), as text, with
+ * recon's -m and -p.  Files are not among them: they would be paths on
+ * this machine, not the daemon's. */
+typedef struct run_opts {
+    GOptionEntry e[RUN_OPTS_MAX + 1];
+    char *text[RUN_OPTS_MAX];
+    gboolean flag[RUN_OPTS_MAX];
+    int n;
+} run_opts;
+
+static void run_opts_init(run_opts *r)
+{
+    memset(r, 0, sizeof *r);
+    int is_flag;
+    const char *name;
+    for (int i = 0; r->n < RUN_OPTS_MAX && (name = pipeline_opts_name(i, &is_flag)); i++) {
+        GOptionEntry *e = &r->e[r->n];
+        e->long_name = name;
+        e->short_name = !strcmp(name, "method") ? 'm' : !strcmp(name, "projections") ? 'p' : 0;
+        e->arg = is_flag ? G_OPTION_ARG_NONE : G_OPTION_ARG_STRING;
+        e->arg_data = is_flag ? (gpointer)&r->flag[r->n] : (gpointer)&r->text[r->n];
+        e->description = is_flag ? "as for a cube (specklab recon --help)"
+                                  : "as for a cube (specklab recon --help); checked by the daemon";
+        e->arg_description = is_flag ? NULL : "V";
+        r->n++;
+    }
+}
+
+/* The options given into args: the method as the command's own argument
+ * (as before options existed), the rest as its "options" object. */
+static void run_opts_json(const run_opts *r, JsonObject *args)
+{
+    JsonObject *o = NULL;
+    for (int i = 0; i < r->n; i++) {
+        const char *name = r->e[i].long_name;
+        if (!r->text[i] && !r->flag[i])
+            continue;
+        if (!strcmp(name, "method")) {
+            json_object_set_string_member(args, name, r->text[i]);
+            continue;
+        }
+        if (!o)
+            o = json_object_new();
+        json_object_set_string_member(o, name, r->text[i] ? r->text[i] : "true");
+    }
+    if (o)
+        json_object_set_object_member(args, "options", o);
+}
+
+static void run_opts_clear(run_opts *r)
+{
+    for (int i = 0; i < r->n; i++)
+        g_free(r->text[i]);
+}
+
+/* -o and --png checked before the daemon spends minutes on the run. */
+static int outputs_free(const char *out, const char *png, int overwrite)
+{
+    GError *ge = NULL;
+    if ((out && !outfile_check(out, overwrite, NULL, 0, &ge)) ||
+        (png && !outfile_check(png, overwrite, NULL, 0, &ge))) {
+        fprintf(stderr, "specklab recon: %s\n", ge->message);
+        g_error_free(ge);
+        return 0;
+    }
+    return 1;
+}
+
 int cmd_recon_run(int argc, char **argv)
 {
     dcmd_opts o = {0};
-    char *method = NULL, *out = NULL, *png = NULL;
-    int projections = 0, quiet = 0, overwrite = 0, timeout_s = RECON_TIMEOUT_S;
+    run_opts ro;
+    char *out = NULL, *png = NULL;
+    int quiet = 0, overwrite = 0, timeout_s = RECON_TIMEOUT_S;
     GOptionEntry entries[] = {
-        {"method", 'm', 0, G_OPTION_ARG_STRING, &method, "direct|tsm|tsm-fourier (default: the daemon's)", "M"},
-        {"projections", 'p', 0, G_OPTION_ARG_INT, &projections, "TSM projection angles", "N"},
         {"output", 'o', 0, G_OPTION_ARG_FILENAME, &out, "also copy the reconstruction FITS here", "FILE"},
         {"png", 0, 0, G_OPTION_ARG_FILENAME, &png, "also copy the PNG preview here", "FILE"},
         {"overwrite", 0, 0, G_OPTION_ARG_NONE, &overwrite, "replace existing -o/--png files", NULL},
         {"timeout-s", 0, 0, G_OPTION_ARG_INT, &timeout_s, "give up after S s (default 1800)", "S"},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &quiet, "print nothing on success", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
+    run_opts_init(&ro);
     GOptionContext *ctx = g_option_context_new("RUN-ID - reconstruct a catalogued run in the daemon");
     g_option_context_add_main_entries(ctx, entries, NULL);
+    g_option_context_add_main_entries(ctx, ro.e, NULL);
     dcmd_opts_add(&o, ctx);
     g_option_context_set_description(ctx,
-        "The result is stored as a new reconstruction row of the run.");
+        "The result is stored as a new reconstruction row of the run, with the options\n"
+        "given; the daemon checks them as recon does for a cube.  Calibration frames and\n"
+        "a reference come from its configuration and catalogue (calibrator runs).");
     int status = 2;
     client *c = NULL;
     JsonObject *args = json_object_new(), *res = NULL;
     if (!cli_parse(ctx, &argc, &argv))
         goto free_args;
-    if (argc != 2 || timeout_s <= 0 || projections < 0) {
+    if (argc != 2 || timeout_s <= 0) {
         fprintf(stderr, "specklab recon: usage: specklab recon RUN-ID [--method M] "
-                        "[--projections N] [-o FILE] [--png FILE]\n");
+                        "[recon's options] [-o FILE] [--png FILE]\n");
         goto free_args;
     }
-    if (method && strcmp(method, "tsm") && strcmp(method, "direct") &&
-        strcmp(method, "tsm-fourier")) {
-        fprintf(stderr, "specklab recon: unknown --method '%s' (direct, tsm, tsm-fourier)\n",
-                method);
+    if (!outputs_free(out, png, overwrite))
         goto free_args;
-    }
-    GError *ge = NULL;
-    if ((out && !outfile_check(out, overwrite, NULL, 0, &ge)) ||
-        (png && !outfile_check(png, overwrite, NULL, 0, &ge))) {
-        /* before the daemon spends minutes on it */
-        fprintf(stderr, "specklab recon: %s\n", ge->message);
-        g_error_free(ge);
-        goto free_args;
-    }
     json_object_set_string_member(args, "run", argv[1]);
-    if (method)
-        json_object_set_string_member(args, "method", method);
-    if (projections > 0)
-        json_object_set_int_member(args, "projections", projections);
+    run_opts_json(&ro, args);
     status = 1;
     if (!(c = dcmd_connect(&o, "specklab recon")))
         goto free_args;
     if (isatty(STDERR_FILENO) && !quiet && !o.json)
         fprintf(stderr, "specklab recon: reconstructing run %s in specklabd...\n", argv[1]);
-    if (dcmd_call(c, "specklab recon", "reconstruct", args, timeout_s * 1000, &res))
+    if (dcmd_call(c, "specklab recon", "reconstruct", args, timeout_s * 1000, &res)) {
+        /* a refused option is a usage error, as for a cube */
+        status = g_strcmp0(client_errcode(c), "bad-request") ? 1 : 2;
         goto free_client;
+    }
     JsonObject *x = dcmd_obj(res, "reconstruction");
     const char *run = dcmd_str(res, "run") ? dcmd_str(res, "run") : argv[1];
     status = copy_out(c, x, "fits", out, overwrite) | copy_out(c, x, "png", png, overwrite);
@@ -456,6 +519,7 @@ free_args:
     json_object_unref(args);
     g_option_context_free(ctx);
     dcmd_opts_clear(&o);
-    g_free(method); g_free(out); g_free(png);
+    run_opts_clear(&ro);
+    g_free(out); g_free(png);
     return status;
 }

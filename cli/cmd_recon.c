@@ -11,7 +11,6 @@
 #include "io/cube.h"
 #include "measure/metrics.h"
 #include "pipeline/pipeline.h"
-#include "spectra/powspec.h"
 #include "io/preview.h"
 #include "outfile.h"
 #include "progress.h"
@@ -137,52 +136,24 @@ static void recon_report(const recon_args *a, const pipeline_opts *o,
     }
 }
 
-/* value names[i] -> vals[i]; 1, or 0 after naming the choices. */
-static int parse_choice(const char *opt, const char *value, const char *const *names,
-                        const int *vals, int n, int *out)
+/* One option through pipeline_opts_set (the daemon's words too); 1, or 0
+ * after printing its error. */
+static int set_opt(pipeline_opts *o, const char *name, const char *value)
 {
-    for (int i = 0; i < n; i++)
-        if (!strcmp(value, names[i])) {
-            *out = vals[i];
-            return 1;
-        }
-    fprintf(stderr, "specklab recon: unknown --%s '%s' (", opt, value);
-    for (int i = 0; i < n; i++)
-        fprintf(stderr, "%s%s", i ? ", " : "", names[i]);
-    fprintf(stderr, ")\n");
+    sl_err e = {0};
+    if (!value || pipeline_opts_set(o, name, value, &e) == SL_OK)
+        return 1;
+    fprintf(stderr, "specklab recon: %s\n", e.msg);
     return 0;
 }
 
 /* The named choices of recon's options into o; 0 after a usage error. */
 static int parse_choices(const recon_args *a, pipeline_opts *o)
 {
-    static const char *const win[] = {"none", "hann", "tukey"};
-    static const int winv[] = {POWSPEC_WIN_NONE, POWSPEC_WIN_HANN, POWSPEC_WIN_TUKEY};
-    static const char *const phases[] = {"raw", "corrected"};
-    static const char *const inv[] = {"fbp", "iter"};
-    static const int invv[] = {TSM_INV_AUTO, TSM_INV_ITER};
-    static const char *const weights[] = {"mod", "snr", "unit"};
-    static const int idx[] = {0, 1, 2};
-    if (a->method && pipeline_method_parse(a->method, &o->method) != SL_OK) {
-        fprintf(stderr, "specklab recon: unknown --method '%s' (direct, tsm, "
-                        "tsm-fourier, auto)\n", a->method);
-        return 0;
-    }
-    if (a->skips && pipeline_skips_parse(a->skips, &o->skips) != SL_OK) {
-        fprintf(stderr, "specklab recon: --skips '%s': a list of reject, crop, "
-                        "support, angles, or all, none\n", a->skips);
-        return 0;
-    }
-    int inverse = o->tsm_inverse;
-    int ok = (!a->window || parse_choice("window", a->window, win, winv, 3, &o->window)) &&
-             (!a->tsm_phases || parse_choice("tsm-phases", a->tsm_phases, phases, idx, 2,
-                                             &o->tsm_corrected_phases)) &&
-             (!a->tsm_inverse || parse_choice("tsm-inverse", a->tsm_inverse, inv, invv, 2,
-                                              &inverse)) &&
-             (!a->phase_weights || parse_choice("phase-weights", a->phase_weights, weights,
-                                                idx, 3, &o->phase_weight));
-    o->tsm_inverse = inverse;
-    return ok;
+    return set_opt(o, "method", a->method) && set_opt(o, "skips", a->skips) &&
+           set_opt(o, "window", a->window) && set_opt(o, "tsm-phases", a->tsm_phases) &&
+           set_opt(o, "tsm-inverse", a->tsm_inverse) &&
+           set_opt(o, "phase-weights", a->phase_weights);
 }
 
 /* recon's options into o; 0 after a usage error (printed). */

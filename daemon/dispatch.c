@@ -2,6 +2,7 @@
  * (start-run, abort-run, reconstruct, subscribe); see dispatch.h.  The
  * read-only commands are in query.c. */
 #include "dispatch_int.h"
+#include "recon_opts.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -377,19 +378,32 @@ static char *cmd_abort_run(request *rq)
 static char *cmd_reconstruct(request *rq)
 {
     daemon_ctx *d = rq->d;
-    char uuid[CATALOG_UUID_LEN + 1], *reply = NULL, *method = NULL;
+    char uuid[CATALOG_UUID_LEN + 1], *reply = NULL, *method = NULL, *why = NULL;
+    char opts[RECON_OPTS_MAX], opt_method[16] = "";
     gint64 proj = 0;
+    int opt_proj = -1;
     catalog_run r;
     /* Syntax first, then lookups: a bad argument is reported as such even
      * when the run does not exist. */
     if (arg_str(rq, "method", 0, 0, &method, &reply) ||
         arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply))
         goto free_method;
+    if ((why = recon_opts_read(rq->args, opts, opt_method, &opt_proj))) {
+        reply = reply_err(rq, "bad-request", "%s", why);   /* recon's own words */
+        g_free(why);
+        goto free_method;
+    }
+    if (opt_method[0])
+        g_free(method), method = g_strdup(opt_method);
+    if (opt_proj >= 0)
+        proj = opt_proj;
     if (!method)
         method = g_strdup(strcmp(d->cfg->reconstruct, "none") ? d->cfg->reconstruct : "auto");
-    if (!config_method_valid(method) || !strcmp(method, "none")) {
-        reply = reply_err(rq, "bad-request", "method must be auto, direct, tsm or tsm-fourier, "
-                          "got '%.40s'", method);
+    pipeline_opts po;
+    sl_err e = {0};
+    pipeline_opts_defaults(&po);
+    if (pipeline_opts_set(&po, "method", method, &e) != SL_OK) {
+        reply = reply_err(rq, "bad-request", "%s", e.msg);   /* recon's words */
         goto free_method;
     }
     if (arg_run(rq, "run", 1, uuid, NULL, &reply))
@@ -408,7 +422,7 @@ static char *cmd_reconstruct(request *rq)
         reply = reply_err(rq, "not-found", "run %s has no cube on disk%s%s", uuid,
                           r.file_path ? ": " : "", r.file_path ? r.file_path : "");
     else
-        worker_submit(d->wk, uuid, method, (int)proj, &rq->q);   /* replies when done */
+        worker_submit(d->wk, uuid, method, (int)proj, opts, &rq->q);   /* replies when done */
     catalog_run_clear(&r);
 free_method:
     g_free(method);
@@ -450,7 +464,7 @@ static const command commands[] = {
     {"run", cmd_run, {"run", NULL}},
     {"screens", cmd_screens, {"since", NULL}},
     {"masks", cmd_masks, {NULL}},
-    {"reconstruct", cmd_reconstruct, {"run", "method", "projections", NULL}},
+    {"reconstruct", cmd_reconstruct, {"run", "method", "projections", "options", NULL}},
     {"subscribe", cmd_subscribe, {"run", NULL}},
 };
 

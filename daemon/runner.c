@@ -63,10 +63,13 @@ void runner_note_camera(runner *r, int connected, const camera_info *info, const
     g_mutex_unlock(&r->mu);
 }
 
-void runner_note_progress(runner *r, int acquired)
+void runner_note_progress(runner *r, int acquired, int failed, int64_t missing)
 {
     g_mutex_lock(&r->mu);
     r->st.frames_acquired = acquired;
+    r->st.frames_failed = failed;
+    if (missing >= 0)
+        r->st.packets_missing = missing;
     g_mutex_unlock(&r->mu);
 }
 
@@ -223,7 +226,7 @@ static void do_run(runner *r, const runner_spec *sp)
     if (acquire_run(r, sp, pf.extent_m, reason, sizeof reason, &r0_m) == ACQ_COMPLETE) {
         if (isfinite(r0_m))
             g_message("run %s: r0 %.4f m (image motion)", sp->uuid, r0_m);
-        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL);
+        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL, NULL);
     }
 }
 
@@ -294,7 +297,8 @@ static gpointer thread_main(gpointer data)
         if (sp) {
             snprintf(r->st.current, sizeof r->st.current, "%s", sp->uuid);
             r->st.state = CATALOG_QUEUED;
-            r->st.frames_acquired = 0;
+            r->st.frames_acquired = r->st.frames_failed = 0;
+            r->st.packets_missing = 0;
             r->st.frames_requested = sp->frames;
         }
         g_mutex_unlock(&r->mu);
@@ -337,6 +341,7 @@ int runner_new(runner **out, const config *cfg, server *srv, worker *wk, reserve
     g_cond_init(&r->cv);
     g_queue_init(&r->queue);
     r->abort_reqs = g_array_new(FALSE, FALSE, sizeof(proto_req));
+    r->tap = webtap_new();
     r->th = g_thread_new("acquire", thread_main, r);
     *out = r;
     return SL_OK;
@@ -388,6 +393,11 @@ void runner_status_get(runner *r, runner_status *out)
     g_mutex_unlock(&r->mu);
 }
 
+webtap *runner_tap(runner *r)
+{
+    return r->tap;
+}
+
 void runner_stop(runner *r)
 {
     if (!r || !r->th)
@@ -414,6 +424,7 @@ void runner_free(runner *r)
     catalog_close(r->cat);
     g_queue_clear_full(&r->queue, g_free);
     g_array_free(r->abort_reqs, TRUE);
+    webtap_free(r->tap);
     g_mutex_clear(&r->mu);
     g_cond_clear(&r->cv);
     g_free(r);

@@ -14,6 +14,7 @@
 
 #include "calib.h"
 #include "catlock.h"
+#include "recon_opts.h"
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
 #include "skyfig.h"
@@ -24,6 +25,7 @@ typedef struct wjob {
     char uuid[CATALOG_UUID_LEN + 1];
     char method[16];
     int projections;
+    char options[RECON_OPTS_MAX];   /* the client's, checked (recon_opts.h) */
     int automatic;
     proto_req req;
 } wjob;
@@ -203,6 +205,7 @@ static char *params_json(const wjob *j, const pipeline_opts *po, const pipeline_
         proto_add_str(b, "tsm_phases", res->report.corrected_phases ? "corrected" : "raw");
     }
     proto_add_bool(b, "prep", po->prep);
+    recon_opts_params(j->options, b);
     calib_json(cal, b);
     char skips[64];
     pipeline_skips_name(po->skips, skips, sizeof skips);
@@ -285,8 +288,8 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
     if (pipeline_method_parse(j->method, &m) != SL_OK)
         return sl_seterr(e, SL_EINVAL, "unknown method '%s'", j->method);
     job_opts(w, j, &po);
-    int rc = calib_find(w->cat, w->cfg, j->uuid, &cal, e);
-    if (rc != SL_OK)
+    int rc = recon_opts_apply(j->options, &po, e);
+    if (rc != SL_OK || (rc = calib_find(w->cat, w->cfg, j->uuid, &cal, e)) != SL_OK)
         return rc;
     calib_apply(&cal, &po);
     catalog_recon_init(rec);
@@ -457,10 +460,11 @@ int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err
 }
 
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,
-                  const proto_req *req)
+                  const char *options, const proto_req *req)
 {
     wjob *j = g_new0(wjob, 1);
     snprintf(j->uuid, sizeof j->uuid, "%s", uuid);
+    snprintf(j->options, sizeof j->options, "%s", options ? options : "");
     snprintf(j->method, sizeof j->method, "%s", method);
     j->projections = projections;
     j->automatic = req == NULL;

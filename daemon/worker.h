@@ -34,9 +34,10 @@ typedef struct worker worker;
  * reserve.h; may be NULL) must outlive the worker. */
 int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err *err);
 /* Queue a job (thread-safe).  req NULL: automatic. projections 0: the
- * configured default.  Returns the number of jobs ahead of it. */
+ * configured default.  options: recon_opts.h's checked text, or NULL/"".
+ * Returns the number of jobs ahead of it. */
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,
-                  const proto_req *req);
+                  const char *options, const proto_req *req);
 /* The run being reconstructed (empty when idle) and the queue length. */
 void worker_status(worker *w, char current[CATALOG_UUID_LEN + 1], int *queued);
 /* Finish the current job, settle the queued ones, join the thread. */

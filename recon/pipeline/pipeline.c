@@ -14,23 +14,6 @@
 #include "pipeline_int.h"
 #include "tsm/tsm.h"
 
-void pipeline_opts_defaults(pipeline_opts *o)
-{
-    memset(o, 0, sizeof *o);
-    /* auto: the method, crop and angles chosen from the data (probe.h,
-     * autoconf.h); the one default the CLI and specklabd share */
-    o->method = PIPE_AUTO;
-    o->window = POWSPEC_WIN_TUKEY;
-    o->tukey_alpha = 0.25;
-    o->prep = 1;
-    o->detect = 1;
-    o->recentre = 1;
-    o->fftw_measure = 1;
-    o->skips = -1;
-    o->refine_iters = -1;
-    o->phase_weight = -1;
-}
-
 void pipeline_result_clear(pipeline_result *r)
 {
     if (!r)

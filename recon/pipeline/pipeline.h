@@ -252,6 +252,17 @@ int pipeline_check_data(const pipeline_opts *o, const char *what, int width,
                         int height, int nframes, sl_err *err);
 int pipeline_method_parse(const char *name, int *method);
 const char *pipeline_method_name(int method);
+/* One option by the CLI's long name without "--" ("skips", "r2-px",
+ * "binary", ...) and its value as text ("" or "true" for a flag, "false"
+ * leaves it): SL_EINVAL naming the option and the value, or the choices,
+ * on bad syntax; ranges are pipeline_opts_check's.  Files (--ref, --dark,
+ * ...) are not options here: they are paths on the caller's machine.
+ * The CLI parses its command line through it, and specklabd a client's
+ * options for a catalogued run (pipeline_optset.c). */
+int pipeline_opts_set(pipeline_opts *o, const char *name, const char *value, sl_err *err);
+/* The i-th name pipeline_opts_set knows (NULL past the last); *is_flag
+ * (may be NULL) 1 for an option without a value. */
+const char *pipeline_opts_name(int i, int *is_flag);
 /* "crop,reject,support,angles", "all" or "none" -> PIPE_SKIP_* bits. */
 int pipeline_skips_parse(const char *list, int *skips);
 /* The bits as that list (buf of n >= 32 chars). */

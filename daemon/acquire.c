@@ -318,7 +318,7 @@ static int flush_progress(acq *a, sl_err *e)
             a->fl = NULL;
         }
     }
-    runner_note_progress(a->r, a->stored);
+    runner_note_progress(a->r, a->stored, a->failed, -1);
     server_event_async(a->r->srv, a->sp->uuid,
                        proto_event_progress(a->sp->uuid, a->stored, a->sp->frames, a->failed));
     return SL_OK;
@@ -401,6 +401,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
             }
             if (a->see)
                 seeing_add(a->see, a->pix);
+            webtap_offer(r->tap, sp->uuid, a->pix, fr.width, fr.height);   /* never waits */
             row.cube_idx = a->stored++;
         } else if (++a->failed > max_fail) {
             g_array_append_val(a->rows, row);
@@ -421,6 +422,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
             run_stats(a, &cs);
             t_db = now;
             progress_post(&a->pw, r->cat, a->stored, a->failed, (int64_t)cs.missing_packets);
+            runner_note_progress(r, a->stored, a->failed, (int64_t)cs.missing_packets);
         }
     }
     return ACQ_COMPLETE;
@@ -497,7 +499,7 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
     if (catlock_write(r->cat, &r->cl, what, catlock_set_file, &cf) != SL_OK)
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
     a->stored = on_disk;
-    runner_note_progress(r, on_disk);
+    runner_note_progress(r, on_disk, a->failed, a->packets_missing);
     if (end == ACQ_COMPLETE)
         runner_set_state(r, uuid, CATALOG_STORED, NULL);
     else

@@ -31,6 +31,7 @@
 #include "reserve.h"
 #include "server.h"
 #include "stage.h"
+#include "webtap.h"
 #include "worker.h"
 
 typedef struct runner runner;
@@ -52,6 +53,8 @@ typedef struct runner_status {
     char current[CATALOG_UUID_LEN + 1];   /* "" when idle */
     catalog_state state;
     int frames_acquired, frames_requested;
+    int frames_failed;                    /* damaged buffers this run */
+    gint64 packets_missing;               /* this run, as of the last second */
     char **queue;                         /* NULL-terminated; g_strfreev */
     int camera_connected;
     camera_info camera;                   /* model/serial "" when never seen */
@@ -78,6 +81,9 @@ void runner_enqueue(runner *r, const runner_spec *spec, int *ahead,
  * it and reply to req (copied) when it has; RUNNER_NOT_HERE otherwise. */
 int runner_abort(runner *r, const char *uuid, const proto_req *req);
 void runner_status_get(runner *r, runner_status *out);
+/* The frame tap (webtap.h) the acquisition offers its good frames to:
+ * the web view's.  Owned by the runner; valid until runner_free. */
+webtap *runner_tap(runner *r);
 /* Abort the current run ("daemon stopping"), mark queued runs aborted,
  * join the thread. */
 void runner_stop(runner *r);

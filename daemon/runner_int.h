@@ -29,6 +29,7 @@ struct runner {
     char abort_reason[64];
     GArray *abort_reqs;        /* proto_req awaiting the current run's end */
     runner_status st;          /* queue field unused here */
+    webtap *tap;               /* the web view's frames (never waits) */
 };
 
 /* How an acquisition ended. */
@@ -52,6 +53,7 @@ int runner_stopping(void *runner_arg);
 void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason);
 int runner_aborting(runner *r);
 void runner_note_camera(runner *r, int connected, const camera_info *info, const char *error);
-void runner_note_progress(runner *r, int acquired);
+/* missing < 0: unchanged. */
+void runner_note_progress(runner *r, int acquired, int failed, int64_t missing);
 
 #endif

@@ -8,7 +8,7 @@
 #include "cubefile.h"
 #include "proto.h"
 
-static const char *const names[CALIB_N] = {"dark", "flat", "flat_dark", "badpix"};
+static const char *const names[CALIB_N] = {"dark", "flat", "flat_dark", "badpix", "ref"};
 
 /* The cube of the `kind` run matched to run `uuid`, into slot k.  A match
  * whose cube is gone or lies outside the data directory is skipped with a
@@ -37,17 +37,56 @@ static int from_catalogue(catalog *cat, const config *cfg, const char *uuid,
     return SL_OK;
 }
 
-int calib_find(catalog *cat, const config *cfg, const char *uuid, calib_set *out,
-               sl_err *err)
+/* The reference named by the request: a done calibrator run's cube. */
+static int named_ref(catalog *cat, const config *cfg, const char *ref, calib_set *c,
+                     sl_err *err)
+{
+    char id[CATALOG_UUID_LEN + 1];
+    catalog_run r;
+    if (catalog_run_resolve(cat, ref, id) != SL_OK || catalog_run_get(cat, id, &r) != SL_OK)
+        return sl_seterr(err, SL_EINVAL, "calibrator %s: %s", ref, catalog_errmsg(cat));
+    int ok = r.kind == CATALOG_CALIBRATOR && r.state == CATALOG_DONE && r.file_path &&
+             cubefile_under(cfg->data_dir, r.file_path);
+    if (ok) {
+        c->path[CALIB_REF] = g_strdup(r.file_path);
+        snprintf(c->run[CALIB_REF], sizeof c->run[CALIB_REF], "%s", id);
+    } else {
+        sl_seterr(err, SL_EINVAL, "calibrator %s is a %s run, %s%s: a reference is a done "
+                  "calibrator run with its cube", id, catalog_kind_name(r.kind),
+                  catalog_state_name(r.state), r.file_path ? "" : ", no cube");
+    }
+    catalog_run_clear(&r);
+    return ok ? SL_OK : SL_EINVAL;
+}
+
+static int find_ref(catalog *cat, const config *cfg, const char *uuid, catalog_kind kind,
+                    const char *ref, calib_set *c, sl_err *err)
+{
+    if (ref && !strcmp(ref, "none"))
+        return SL_OK;
+    if (ref)
+        return named_ref(cat, cfg, ref, c, err);
+    /* a calibrator is not calibrated by another; darks and flats are
+     * never reconstructed */
+    if (kind != CATALOG_SCIENCE || !cfg->calib_catalogued)
+        return SL_OK;
+    return from_catalogue(cat, cfg, uuid, CATALOG_CALIBRATOR, c, CALIB_REF, err);
+}
+
+int calib_find(catalog *cat, const config *cfg, const char *uuid, catalog_kind kind,
+               const char *ref, calib_set *out, sl_err *err)
 {
     memset(out, 0, sizeof *out);
     const char *file[CALIB_N] = {cfg->calib_dark, cfg->calib_flat, cfg->calib_flat_dark,
-                                 cfg->calib_badpix};
+                                 cfg->calib_badpix, NULL};
     for (int k = 0; k < CALIB_N; k++)
         out->path[k] = g_strdup(file[k]);
-    if (!cfg->calib_catalogued)
-        return SL_OK;
-    int rc = SL_OK;
+    int rc = find_ref(cat, cfg, uuid, kind, ref, out, err);
+    if (rc != SL_OK || !cfg->calib_catalogued) {
+        if (rc != SL_OK)
+            calib_clear(out);
+        return rc;
+    }
     if (!out->path[CALIB_DARK])
         rc = from_catalogue(cat, cfg, uuid, CATALOG_DARK, out, CALIB_DARK, err);
     /* a configured flat comes with its configured dark (or none) */
@@ -68,6 +107,7 @@ void calib_apply(const calib_set *c, pipeline_opts *po)
     po->flat_path = c->path[CALIB_FLAT];
     po->flat_dark_path = c->path[CALIB_FLAT_DARK];
     po->badpix_path = c->path[CALIB_BADPIX];
+    po->ref_path = c->path[CALIB_REF];
 }
 
 void calib_json(const calib_set *c, JsonBuilder *b)

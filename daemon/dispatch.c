@@ -379,14 +379,15 @@ static char *cmd_reconstruct(request *rq)
 {
     daemon_ctx *d = rq->d;
     char uuid[CATALOG_UUID_LEN + 1], *reply = NULL, *method = NULL, *why = NULL;
-    char opts[RECON_OPTS_MAX], opt_method[16] = "";
+    char opts[RECON_OPTS_MAX], opt_method[16] = "", *calibrator = NULL;
     gint64 proj = 0;
     int opt_proj = -1;
     catalog_run r;
     /* Syntax first, then lookups: a bad argument is reported as such even
      * when the run does not exist. */
     if (arg_str(rq, "method", 0, 0, &method, &reply) ||
-        arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply))
+        arg_int(rq, "projections", 0, 1, 4096, &proj, NULL, &reply) ||
+        arg_str(rq, "calibrator", 0, 0, &calibrator, &reply))
         goto free_method;
     if ((why = recon_opts_read(rq->args, opts, opt_method, &opt_proj))) {
         reply = reply_err(rq, "bad-request", "%s", why);   /* recon's own words */
@@ -422,10 +423,12 @@ static char *cmd_reconstruct(request *rq)
         reply = reply_err(rq, "not-found", "run %s has no cube on disk%s%s", uuid,
                           r.file_path ? ": " : "", r.file_path ? r.file_path : "");
     else
-        worker_submit(d->wk, uuid, method, (int)proj, opts, &rq->q);   /* replies when done */
+        worker_submit(d->wk, uuid, method, (int)proj, &(worker_extra){opts, calibrator},
+                      &rq->q);   /* replies when done; the worker checks the calibrator */
     catalog_run_clear(&r);
 free_method:
     g_free(method);
+    g_free(calibrator);
     return reply;
 }
 
@@ -464,7 +467,8 @@ static const command commands[] = {
     {"run", cmd_run, {"run", NULL}},
     {"screens", cmd_screens, {"since", NULL}},
     {"masks", cmd_masks, {NULL}},
-    {"reconstruct", cmd_reconstruct, {"run", "method", "projections", "options", NULL}},
+    {"reconstruct", cmd_reconstruct, {"run", "method", "projections", "options", "calibrator",
+                                      NULL}},
     {"subscribe", cmd_subscribe, {"run", NULL}},
 };
 

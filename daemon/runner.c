@@ -226,7 +226,7 @@ static void do_run(runner *r, const runner_spec *sp)
     if (acquire_run(r, sp, pf.extent_m, reason, sizeof reason, &r0_m) == ACQ_COMPLETE) {
         if (isfinite(r0_m))
             g_message("run %s: r0 %.4f m (image motion)", sp->uuid, r0_m);
-        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL, NULL);
+        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL, NULL);   /* defaults */
     }
 }
 

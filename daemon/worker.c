@@ -26,6 +26,7 @@ typedef struct wjob {
     char method[16];
     int projections;
     char options[RECON_OPTS_MAX];   /* the client's, checked (recon_opts.h) */
+    char calibrator[CATALOG_UUID_LEN + 1];   /* "": the nearest; "none"; a run */
     int automatic;
     proto_req req;
 } wjob;
@@ -277,7 +278,7 @@ static int record(worker *w, const wjob *j, pipeline_result *res, const char *pa
 }
 
 /* Reconstruct, write, measure, catalogue. */
-static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon *rec,
+static int reconstruct(worker *w, const wjob *j, const catalog_run *run, catalog_recon *rec,
                        outputs *o, sl_err *e)
 {
     pipeline_opts po;
@@ -289,7 +290,9 @@ static int reconstruct(worker *w, const wjob *j, const char *cube, catalog_recon
         return sl_seterr(e, SL_EINVAL, "unknown method '%s'", j->method);
     job_opts(w, j, &po);
     int rc = recon_opts_apply(j->options, &po, e);
-    if (rc != SL_OK || (rc = calib_find(w->cat, w->cfg, j->uuid, &cal, e)) != SL_OK)
+    const char *ref = j->calibrator[0] ? j->calibrator : NULL, *cube = run->file_path;
+    if (rc != SL_OK ||
+        (rc = calib_find(w->cat, w->cfg, j->uuid, run->kind, ref, &cal, e)) != SL_OK)
         return rc;
     calib_apply(&cal, &po);
     catalog_recon_init(rec);
@@ -332,7 +335,7 @@ static void run_job(worker *w, const wjob *j)
         if (j->automatic)
             set_state(w, j->uuid, CATALOG_RECONSTRUCTING, NULL);
         g_message("run %s: reconstructing (%s)", j->uuid, j->method);
-        rc = reconstruct(w, j, r.file_path, &rec, &o, &e);
+        rc = reconstruct(w, j, &r, &rec, &o, &e);
     }
     if (rc == SL_OK) {
         server_event_async(w->srv, j->uuid, proto_event_recon(j->uuid, proto_recon_node(&rec)));
@@ -460,11 +463,13 @@ int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err
 }
 
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,
-                  const char *options, const proto_req *req)
+                  const worker_extra *extra, const proto_req *req)
 {
     wjob *j = g_new0(wjob, 1);
     snprintf(j->uuid, sizeof j->uuid, "%s", uuid);
-    snprintf(j->options, sizeof j->options, "%s", options ? options : "");
+    snprintf(j->options, sizeof j->options, "%s", extra && extra->options ? extra->options : "");
+    snprintf(j->calibrator, sizeof j->calibrator, "%s",
+             extra && extra->calibrator ? extra->calibrator : "");
     snprintf(j->method, sizeof j->method, "%s", method);
     j->projections = projections;
     j->automatic = req == NULL;

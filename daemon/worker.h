@@ -33,11 +33,17 @@ typedef struct worker worker;
  * and starts the thread.  cfg, srv and rs (the catalogue's reserve,
  * reserve.h; may be NULL) must outlive the worker. */
 int worker_new(worker **out, const config *cfg, server *srv, reserve *rs, sl_err *err);
+/* A job's choices beyond the method: NULL members are the defaults. */
+typedef struct worker_extra {
+    const char *options;      /* recon_opts.h's checked text */
+    const char *calibrator;   /* calib.h's ref: a run, "none"; NULL nearest */
+} worker_extra;
+
 /* Queue a job (thread-safe).  req NULL: automatic. projections 0: the
- * configured default.  options: recon_opts.h's checked text, or NULL/"".
- * Returns the number of jobs ahead of it. */
+ * configured default.  extra may be NULL.  Returns the number of jobs
+ * ahead of it. */
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,
-                  const char *options, const proto_req *req);
+                  const worker_extra *extra, const proto_req *req);
 /* The run being reconstructed (empty when idle) and the queue length. */
 void worker_status(worker *w, char current[CATALOG_UUID_LEN + 1], int *queued);
 /* Finish the current job, settle the queued ones, join the thread. */

@@ -160,9 +160,9 @@ void runner_status_get(runner *r, runner_status *out)
 /* The real worker answers {"run", "reconstruction"} when done; the
  * stand-in answers at once (later) with what it was asked. */
 int worker_submit(worker *w, const char *uuid, const char *method, int projections,
-                  const char *options, const proto_req *req)
+                  const worker_extra *extra, const proto_req *req)
 {
-    (void)w, (void)options;
+    (void)w, (void)extra;
     g_ptr_array_add(FZ.submitted, g_strdup_printf("%s %s", uuid, method));
     if (req) {
         JsonBuilder *b = json_builder_new();

@@ -73,7 +73,7 @@ static const struct proto_cmd {
     {"run", {"run", NULL}},
     {"screens", {"since", NULL}},
     {"masks", {NULL}},
-    {"reconstruct", {"run", "method", "projections", "options", NULL}},
+    {"reconstruct", {"run", "method", "projections", "options", "calibrator", NULL}},
     {"subscribe", {"run", NULL}},
 };
 

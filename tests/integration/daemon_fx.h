@@ -58,6 +58,8 @@ typedef struct bench {
     char db[300];                 /* the catalogue: DATA/specklab.db unless moved */
     char cam_size[16];
     char cam_masks[64];           /* the fake camera's --mask-slots; "": its default */
+    char cam_dm[16];              /* its --dm-mag; "": its default (30: the
+                                   * companion laser off, a point source) */
     fx_proc stage, cam, daemon;
     int port;
     void (*daemon_pre)(void *);   /* e.g. limits, before exec */
@@ -116,10 +118,15 @@ static inline int bench_start_camera(bench *b)
     char bin[PATH_MAX], line[256], stage[64];
     snprintf(stage, sizeof stage, "127.0.0.1:%d", b->port);
     char *argv[] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
-                    "--seed", "5", "-q", NULL, NULL, NULL};
+                    "--seed", "5", "-q", NULL, NULL, NULL, NULL, NULL};
+    int n = 10;
     if (b->cam_masks[0]) {
-        argv[10] = "--mask-slots";
-        argv[11] = b->cam_masks;
+        argv[n++] = "--mask-slots";
+        argv[n++] = b->cam_masks;
+    }
+    if (b->cam_dm[0]) {
+        argv[n++] = "--dm-mag";
+        argv[n++] = b->cam_dm;
     }
     fx_bin(bin, sizeof bin, "specklab-fake-camera");
     if (fx_spawn(&b->cam, argv, b->clog, NULL, NULL) != 0 ||

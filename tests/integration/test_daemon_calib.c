@@ -11,7 +11,14 @@
  *   configured_files  [calibration] dark names a file that every
  *                     reconstruction uses instead of the catalogue's;
  *                     a missing file stops the daemon at start-up with
- *                     the key in the message.
+ *                     the key in the message;
+ *   calibrator_reference  a calibrator run (the companion laser off: the
+ *                     fake camera restarted with dm 30) through screen 1 is
+ *                     the reference of a later science run through the
+ *                     same screen and mask, and the catalogue links them;
+ *                     the result equals recon --ref on the same cubes; a
+ *                     run through another screen gets none, nor does a
+ *                     request with calibrator "none".
  */
 #include "daemon_fx.h"
 
@@ -217,4 +224,76 @@ static void configured_files_run(tc *t)
 
 TEST(configured_files) { fx_in_netns(t, configured_files_run, 240); }
 
-TC_MAIN(TC_CASE(catalogued_dark), TC_CASE(configured_files))
+/* Restart the fake camera with dm (a string; "" its default). */
+static int camera_with_dm(bench *b, dc *c, const char *dm)
+{
+    fx_stop(&b->cam, SIGTERM, 5);
+    snprintf(b->cam_dm, sizeof b->cam_dm, "%s", dm);
+    return bench_start_camera(b) == 0 && bench_wait_camera(b, c, 20) == 0 ? 0 : -1;
+}
+
+/* sep_px, pa_deg, dm_mag of `specklab recon cube --ref ref ... --json`. */
+static int cli_ref_binary(const char *cube, const char *ref, const char *dir, double m[3])
+{
+    char bin[PATH_MAX], out[400];
+    fx_bin(bin, sizeof bin, "specklab");
+    snprintf(out, sizeof out, "%s/cli-ref.fits", dir);
+    char *argv[] = {bin, "recon", (char *)cube, "--ref", (char *)ref, "-m", "direct",
+                    "--skips", "reject,crop,support", "--binary", "--overwrite", "-o", out,
+                    "--json", NULL};
+    char *text = NULL;
+    int st = -1;
+    g_spawn_sync(NULL, argv, NULL, G_SPAWN_STDERR_TO_DEV_NULL, NULL, NULL, &text, NULL, &st,
+                 NULL);
+    JsonNode *n = text ? json_from_string(text, NULL) : NULL;
+    g_free(text);
+    m[0] = n ? jd(n, "binary.sep_px") : NAN;
+    m[1] = n ? jd(n, "binary.pa_deg") : NAN;
+    m[2] = n ? jd(n, "binary.dm_mag") : NAN;
+    if (n)
+        json_node_unref(n);
+    return isfinite(m[0]) ? 0 : -1;
+}
+
+BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
+{
+    dc *c = bench_client(b);
+    char cal[40], sci[40], other[40];
+    CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
+    keep(b, dc_call(c, "subscribe", NULL, 5));
+    CHECK(camera_with_dm(b, c, "30") == 0, "the camera with the companion off");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
+                   "\"kind\": \"calibrator\"}", cal) == 0, "calibrator run");
+    CHECK(camera_with_dm(b, c, "") == 0, "the camera with the companion on");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60}", sci) == 0,
+          "science run");
+    CHECK(run_done(b, c, "{\"screen\": 2, \"mask\": 1, \"frames\": 30}", other) == 0,
+          "a run through screen 2");
+    char args[200];
+    snprintf(args, sizeof args, "{\"run\": \"%s\", \"method\": \"direct\", "
+             "\"options\": {\"binary\": true}}", sci);
+    JsonNode *r = keep(b, dc_call(c, "reconstruct", args, 120));
+    JsonNode *x = jget(r, "result.reconstruction");
+    CHECK(x && has(js(x, "params.ref.run"), cal), "the science run's reference: %s",
+          jtext(jget(x, "params")));
+    JsonNode *cr = run_info(b, c, cal), *sr = run_info(b, c, sci);
+    CHECK(cr && sr && has(js(cr, "run.kind"), "calibrator"), "calibrator run %s", jtext(cr));
+    double m[3];
+    CHECK(cli_ref_binary(js(sr, "run.file"), js(cr, "run.file"), b->dir, m) == 0,
+          "recon --ref on the same cubes measured nothing");
+    double sep = jd(x, "sep_px"), pa = jd(x, "pa_deg"), dmag = jd(x, "dm_mag");
+    CHECK(fabs(sep - m[0]) < 0.01 && fabs(pa - m[1]) < 0.05 && fabs(dmag - m[2]) < 0.01,
+          "daemon %.4f px %.3f deg %.4f mag; recon --ref %.4f %.3f %.4f", sep, pa, dmag,
+          m[0], m[1], m[2]);
+    snprintf(args, sizeof args, "{\"run\": \"%s\", \"method\": \"direct\"}", other);
+    r = keep(b, dc_call(c, "reconstruct", args, 120));
+    CHECK(jok(r) && !jget(r, "result.reconstruction.params.ref"),
+          "screen 2 took screen 1's calibrator: %s", jtext(r));
+    snprintf(args, sizeof args, "{\"run\": \"%s\", \"method\": \"direct\", "
+             "\"calibrator\": \"none\"}", sci);
+    r = keep(b, dc_call(c, "reconstruct", args, 120));
+    CHECK(jok(r) && !jget(r, "result.reconstruction.params.ref"),
+          "calibrator none: %s", jtext(r));
+}
+
+TC_MAIN(TC_CASE(catalogued_dark), TC_CASE(configured_files), TC_CASE(calibrator_reference))

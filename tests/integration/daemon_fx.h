@@ -58,7 +58,7 @@ typedef struct bench {
     char db[300];                 /* the catalogue: DATA/specklab.db unless moved */
     char cam_size[16];
     char cam_masks[64];           /* the fake camera's --mask-slots; "": its default */
-    char cam_dm[16];              /* its --dm-mag; "": its default (30: the
+    char cam_dm[16];              /* its --dm-mag; "": its default (15: the
                                    * companion laser off, a point source) */
     fx_proc stage, cam, daemon;
     int port;

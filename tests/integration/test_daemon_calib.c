@@ -13,7 +13,7 @@
  *                     a missing file stops the daemon at start-up with
  *                     the key in the message;
  *   calibrator_reference  a calibrator run (the companion laser off: the
- *                     fake camera restarted with dm 30) through screen 1 is
+ *                     fake camera restarted with dm 15, its most: a 1e-6 companion) through screen 1 is
  *                     the reference of a later science run through the
  *                     same screen and mask, and the catalogue links them;
  *                     the result equals recon --ref on the same cubes; a
@@ -261,7 +261,7 @@ BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
     char cal[40], sci[40], other[40];
     CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
     keep(b, dc_call(c, "subscribe", NULL, 5));
-    CHECK(camera_with_dm(b, c, "30") == 0, "the camera with the companion off");
+    CHECK(camera_with_dm(b, c, "15") == 0, "the camera with the companion off");
     CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
                    "\"kind\": \"calibrator\"}", cal) == 0, "calibrator run");
     CHECK(camera_with_dm(b, c, "") == 0, "the camera with the companion on");
@@ -285,6 +285,12 @@ BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
     CHECK(fabs(sep - m[0]) < 0.01 && fabs(pa - m[1]) < 0.05 && fabs(dmag - m[2]) < 0.01,
           "daemon %.4f px %.3f deg %.4f mag; recon --ref %.4f %.3f %.4f", sep, pa, dmag,
           m[0], m[1], m[2]);
+    /* the calibrator is a point source: no companion measured in it */
+    snprintf(args, sizeof args, "{\"run\": \"%s\", \"method\": \"direct\", "
+             "\"options\": {\"binary\": true}}", cal);
+    r = keep(b, dc_call(c, "reconstruct", args, 120));
+    CHECK(jok(r) && !has(js(r, "result.reconstruction.params.binary_status"), "measured") &&
+          !jget(r, "result.reconstruction.params.ref"), "the calibrator's own: %s", jtext(r));
     snprintf(args, sizeof args, "{\"run\": \"%s\", \"method\": \"direct\"}", other);
     r = keep(b, dc_call(c, "reconstruct", args, 120));
     CHECK(jok(r) && !jget(r, "result.reconstruction.params.ref"),

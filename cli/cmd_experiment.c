@@ -331,6 +331,8 @@ static void print_json(const bench_run *runs, int n, int frames)
                                      "pa_err_deg", "dm_mag", "dm_err_mag", "c_cophased"};
         for (size_t k = 0; k < sizeof keys / sizeof keys[0]; k++)
             num_member(o, keys[k], dcmd_num(r->recon, keys[k]));
+        num_member(o, "closure_rms_deg", dcmd_num(dcmd_obj(r->recon, "quality"),
+                                                  "closure_rms_deg"));
         num_member(o, "time_s", run_time_s(r));
         str_member(o, "method", dcmd_str(r->recon, "method"));
         num_member(o, "recon_elapsed_s", dcmd_num(r->recon, "elapsed_s"));
@@ -353,8 +355,10 @@ static void print_json(const bench_run *runs, int n, int frames)
 
 static void print_table(const bench_run *runs, int n)
 {
+    /* cp(deg): the closure phases' rms residual after the binary fit, the
+     * quality a real run has without truth (PROTOCOL.md, quality) */
     printf("%-8s  %-10s %-8s %7s %9s %8s %8s %8s %7s %8s  %s\n", "RUN", "SCREEN", "MASK",
-           "r0(m)", "sep(\")", "sep(px)", "PA(deg)", "dm(mag)", "c", "time(s)", "STATE");
+           "r0(m)", "sep(\")", "sep(px)", "PA(deg)", "dm(mag)", "cp(deg)", "time(s)", "STATE");
     for (int i = 0; i < n; i++) {
         const bench_run *r = &runs[i];
         char r0[32], sa[32], sp[32], pa[32], dm[32], c[32], t[32];
@@ -367,7 +371,8 @@ static void print_table(const bench_run *runs, int n)
                dcmd_fmt(sp, sizeof sp, "%.3f", dcmd_num(r->recon, "sep_px")),
                dcmd_fmt(pa, sizeof pa, "%.2f", dcmd_num(r->recon, "pa_deg")),
                dcmd_fmt(dm, sizeof dm, "%.3f", dcmd_num(r->recon, "dm_mag")),
-               dcmd_fmt(c, sizeof c, "%.4f", dcmd_num(r->recon, "c_cophased")),
+               dcmd_fmt(c, sizeof c, "%.2f",
+                        dcmd_num(dcmd_obj(r->recon, "quality"), "closure_rms_deg")),
                dcmd_fmt(t, sizeof t, "%.1f", run_time_s(r)), r->state ? r->state : "-");
     }
     for (int i = 0; i < n; i++) {

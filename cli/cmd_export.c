@@ -353,14 +353,14 @@ static void print_recon(const char *run, JsonObject *x)
     printf("run %s: %s reconstruction #%lld in %s s\n", run,
            dcmd_str(x, "method") ? dcmd_str(x, "method") : "?",
            (long long)dcmd_int(x, "id", -1), dcmd_fmt(t, sizeof t, "%.2f", dcmd_num(x, "elapsed_s")));
-    printf("  sep %s\" (%s px), PA %s +- %s deg, dm %s +- %s mag, c %s\n",
+    printf("  sep %s\" (%s px), PA %s +- %s deg, dm %s +- %s mag, closure residual %s deg\n",
            dcmd_fmt(a, sizeof a, "%.4f", dcmd_num(x, "sep_arcsec")),
            dcmd_fmt(b, sizeof b, "%.3f", dcmd_num(x, "sep_px")),
            dcmd_fmt(p, sizeof p, "%.2f", dcmd_num(x, "pa_deg")),
            dcmd_fmt(pe, sizeof pe, "%.2f", dcmd_num(x, "pa_err_deg")),
            dcmd_fmt(d, sizeof d, "%.3f", dcmd_num(x, "dm_mag")),
            dcmd_fmt(de, sizeof de, "%.3f", dcmd_num(x, "dm_err_mag")),
-           dcmd_fmt(c, sizeof c, "%.4f", dcmd_num(x, "c_cophased")));
+           dcmd_fmt(c, sizeof c, "%.2f", dcmd_num(dcmd_obj(x, "quality"), "closure_rms_deg")));
     if (dcmd_str(x, "fits"))
         printf("  %s\n", dcmd_str(x, "fits"));
     if (dcmd_str(x, "png"))

@@ -61,7 +61,7 @@ static void print_recon_rows(JsonArray *recs)
         return;
     }
     printf("reconstructions:\n  %-4s %-12s %9s %9s %8s %8s %8s %7s %8s  %s\n", "ID",
-           "METHOD", "SEP(\")", "SEP(px)", "PA(deg)", "dm(mag)", "c", "TIME(s)",
+           "METHOD", "SEP(\")", "SEP(px)", "PA(deg)", "dm(mag)", "CP(deg)", "TIME(s)",
            "STARTED", "OUTPUT");
     for (guint i = 0; i < json_array_get_length(recs); i++) {
         JsonObject *x = json_array_get_object_element(recs, i);
@@ -72,7 +72,7 @@ static void print_recon_rows(JsonArray *recs)
                dcmd_fmt(b, sizeof b, "%.3f", dcmd_num(x, "sep_px")),
                dcmd_fmt(p, sizeof p, "%.2f", dcmd_num(x, "pa_deg")),
                dcmd_fmt(d, sizeof d, "%.3f", dcmd_num(x, "dm_mag")),
-               dcmd_fmt(c, sizeof c, "%.4f", dcmd_num(x, "c_cophased")),
+               dcmd_fmt(c, sizeof c, "%.2f", dcmd_num(dcmd_obj(x, "quality"), "closure_rms_deg")),
                dcmd_fmt(t, sizeof t, "%.2f", dcmd_num(x, "elapsed_s")),
                time_of_day(st, sizeof st, dcmd_str(x, "started")),
                or_dash(dcmd_str(x, "png") ? dcmd_str(x, "png") : dcmd_str(x, "fits")));

@@ -230,6 +230,16 @@ static char *quality_json(const pipeline_result *res, double scale, int found,
     proto_add_int(b, "height", res->height);
     proto_add_dbl(b, "plate_scale_arcsec", scale);
     proto_add_bool(b, "binary_found", found);
+    /* Truth-free quality (the catalogue's c against a cophased image needs
+     * the truth, which only a simulation has): the |B|-weighted rms of the
+     * closure phases left after the binary fit, in degrees.  A point source
+     * or a well-fitted binary leaves the noise; a scene the model does not
+     * fit, or phases the data cannot support, leave more. */
+    const pipeline_binary *v = &res->binary;
+    if (v->have_closure) {
+        proto_add_dbl(b, "closure_rms_deg", v->closure_info.rms_rad * 180.0 / G_PI);
+        proto_add_int(b, "closure_triples", v->closure_info.ntriples);
+    }
     if (found) {
         proto_add_dbl(b, "flux_ratio", br->flux_ratio);
         proto_add_dbl(b, "flux_ratio_err", br->flux_ratio_err);

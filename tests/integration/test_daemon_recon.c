@@ -96,6 +96,10 @@ BENCH_TEST(options_through_the_daemon, 180, NULL, NULL)
           "params %s", jtext(jget(x, "params")));
     CHECK(has(js(x, "method"), "auto") && has(js(x, "params.binary_status"), "measured"),
           "reconstruction %s", jtext(x));
+    /* the truth-free quality every reconstruction carries */
+    double cp = jd(x, "quality.closure_rms_deg");
+    CHECK(isfinite(cp) && cp >= 0 && cp < 90 && ji(x, "quality.closure_triples") > 0,
+          "quality %s", jtext(jget(x, "quality")));
     int before = nrecons(b, c, uuid);
 
     /* a bad choice: the words recon prints for a cube, through the socket */

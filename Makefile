@@ -16,7 +16,7 @@ DRV_PKGS   := aravis-0.8 libusb-1.0 libmodbus glib-2.0
 CLI_PKGS   := glib-2.0 json-glib-1.0 $(DRV_PKGS)
 TEST_DRV_PKGS := $(DRV_PKGS) json-glib-1.0 umockdev-1.0
 SCHEMA_PKGS := sqlite3 glib-2.0 gio-2.0
-DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libsystemd
+DAEMON_PKGS := $(DRV_PKGS) gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libsystemd libsoup-3.0
 FIG_PKGS   := cairo fontconfig
 
 WARN   := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -79,9 +79,11 @@ SCHEMA_OBJ := $(SCHEMA_SRC:%.c=$(BUILD)/%.o) $(BUILD)/schema/catalog_res.o
 SCHEMA_LIB := $(BUILD)/libschema.a
 SCHEMA_RES := schema/catalog.gresource.xml
 
-# daemon/: specklabd.
+# daemon/: specklabd; its web page (daemon/webpage.html) is compiled in
+# (GResource, as the catalogue's migrations).
 DAEMON_SRC := $(wildcard daemon/*.c)
-DAEMON_OBJ := $(DAEMON_SRC:%.c=$(BUILD)/%.o)
+DAEMON_OBJ := $(DAEMON_SRC:%.c=$(BUILD)/%.o) $(BUILD)/daemon/web_res.o
+WEB_RES    := daemon/webpage.gresource.xml
 
 CLI_SRC   := $(wildcard cli/*.c)
 CLI_OBJ   := $(CLI_SRC:%.c=$(BUILD)/%.o)
@@ -212,6 +214,14 @@ $(BUILD)/daemon/%.o: daemon/%.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Ifigure $(recon_cflags) $(daemon_cflags) -c $< -o $@
 
+$(BUILD)/daemon/web_res.c: $(WEB_RES) daemon/webpage.html
+	@mkdir -p $(dir $@)
+	glib-compile-resources --generate-source --c-name web_res \
+	    --sourcedir=daemon --target=$@ $(WEB_RES)
+
+$(BUILD)/daemon/web_res.o: $(BUILD)/daemon/web_res.c
+	$(CC) $(CFLAGS_ALL) -Wno-missing-prototypes $(daemon_cflags) -c $< -o $@
+
 $(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
@@ -321,11 +331,11 @@ FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
 FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/base/status.c
-FUZZ_CONFIG_SRC := daemon/config.c recon/base/status.c recon/pipeline/pipeline_names.c
+FUZZ_CONFIG_SRC := daemon/config.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
+                     daemon/config.c daemon/webconf.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
                      recon/pipeline/pipeline_optset.c recon/pipeline/pipeline_check.c \
                      $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
@@ -345,7 +355,7 @@ $(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stag
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Irecon -Idrivers $(shell $(PKG) --cflags libmodbus) $< \
 	    $(FUZZ_STAGE_SRC) -o $@ $(shell $(PKG) --libs libmodbus) -lm
 
-$(FUZZ_BUILD)/fuzz_config: tests/fuzz/fuzz_config.c $(FUZZ_CONFIG_SRC) daemon/config.h tests/fuzz/fuzz_util.h
+$(FUZZ_BUILD)/fuzz_config: tests/fuzz/fuzz_config.c $(FUZZ_CONFIG_SRC) daemon/config.h daemon/webconf.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon -Idaemon $(shell $(PKG) --cflags glib-2.0) $< \
 	    $(FUZZ_CONFIG_SRC) -o $@ $(shell $(PKG) --libs glib-2.0) -lm

@@ -7,6 +7,7 @@
  */
 #include "config.h"
 #include "pipeline/pipeline.h"
+#include "webconf.h"
 
 #include <errno.h>
 #include <glib.h>
@@ -78,7 +79,13 @@ static const char defaults_text[] =
     "# files (FITS image or cube) for every reconstruction; empty: none\n"
     "# dark=   flat=   flat_dark=   badpix=\n"
     "# yes: else the nearest done dark and flat runs of the same camera settings\n"
-    "catalogued=yes\n";
+    "catalogued=yes\n"
+    "\n"
+    "[web]\n"
+    "# listen=127.0.0.1:8080     (HOST:PORT, port 0: any free; unset: no web page)\n"
+    "# yes: a non-loopback listen address is served (no authentication)\n"
+    "allow_remote=no\n"
+    "max_connections=32\n";
 
 const char *config_defaults_text(void)
 {
@@ -97,6 +104,7 @@ static const char *const known_keys[][16] = {
     {"daemon", "socket", "reconstruct", "projections", "tsm_phases", "skips", "fftw", "max_clients",
      "client_idle_timeout_ms", "catalog_busy_timeout_ms", NULL},
     {"calibration", "dark", "flat", "flat_dark", "badpix", "catalogued", NULL},
+    {"web", "listen", "allow_remote", "max_connections", NULL},
 };
 
 /* The CLI's names (pipeline_method_parse), so that both accept the same
@@ -473,6 +481,21 @@ static int read_calibrations(config *c, GKeyFile *kf, sl_err *err)
     return SL_OK;
 }
 
+/* [web]: the listener is checked by webconf.c (loopback unless allowed). */
+static int read_web(config *c, GKeyFile *kf, sl_err *err)
+{
+    char *listen = NULL;
+    int local_only = 1;   /* get_flag: 1 for its first choice, the default */
+    int rc = get_flag(kf, "web", "allow_remote", "no", "yes", &local_only, err);
+    if (rc == SL_OK && (rc = get_str(kf, "web", "listen", "", &listen, err)) == SL_OK &&
+        (rc = get_int(kf, "web", "max_connections", 32, 1, 1024, &c->web_max_connections,
+                      err)) == SL_OK)
+        rc = webconf_set(c, "config [web] listen", listen, !local_only,
+                         "[web] allow_remote = yes", err);
+    g_free(listen);
+    return rc;
+}
+
 int config_load(config *c, const char *path, const char *socket_override,
                 const char *data_dir_override, sl_err *err)
 {
@@ -507,8 +530,8 @@ int config_load(config *c, const char *path, const char *socket_override,
     }
     if (socket_override)
         g_key_file_set_string(kf, "daemon", "socket", socket_override);
-    if ((rc = read_values(c, kf, err)) == SL_OK)
-        rc = read_calibrations(c, kf, err);
+    if ((rc = read_values(c, kf, err)) == SL_OK && (rc = read_calibrations(c, kf, err)) == SL_OK)
+        rc = read_web(c, kf, err);
 free_kf:
     if (ge)
         g_error_free(ge);
@@ -540,6 +563,7 @@ void config_clear(config *c)
     g_free(c->calib_flat);
     g_free(c->calib_flat_dark);
     g_free(c->calib_badpix);
+    g_free(c->web_host);
     memset(c, 0, sizeof *c);
 }
 

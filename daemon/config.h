@@ -16,6 +16,7 @@
  *   [daemon]  socket reconstruct projections tsm_phases skips fftw max_clients
  *             client_idle_timeout_ms catalog_busy_timeout_ms
  *   [calibration] dark flat flat_dark badpix catalogued
+ *   [web]     listen allow_remote max_connections (webconf.h)
  * A key the file omits keeps its default; [screens] and [masks] in the
  * file replace the default lists as a whole.  Unknown keys are errors (a
  * typo must not silently fall back to a default).  Relative paths are
@@ -81,6 +82,12 @@ typedef struct config {
      * flat runs stand in for an absent file (worker.c says which run). */
     char *calib_dark, *calib_flat, *calib_flat_dark, *calib_badpix;
     int calib_catalogued;
+    /* [web] (webconf.h): the page's listener; web_host NULL: no page. */
+    char *web_host;             /* numeric, without brackets */
+    int web_port;               /* 0: any free port */
+    int web_loopback;           /* web_host is a loopback address */
+    int web_allow_remote;       /* a non-loopback host was allowed */
+    int web_max_connections;
 } config;
 
 /* The embedded defaults, as GKeyFile text (also printed by

@@ -1,6 +1,7 @@
 /* main.c - specklabd: options, start-up, the main loop, shutdown.
  *
  *   specklabd [--config FILE] [--socket PATH] [--data-dir DIR]
+ *             [--web HOST:PORT [--web-allow-remote]]
  *             [--foreground] [--quiet] [--print-defaults]
  *
  * Start-up, in this order (each step can refuse to start, exit 1):
@@ -17,9 +18,11 @@
  *      salvaged (cubefile_salvage: frames on disk counted) and its FRAMES
  *      table rebuilt from the rows it logged (framelog.h), is marked
  *      'interrupted', and its file re-checksummed;
- *   5. the worker and runner threads, signal sources, then "READY
- *      socket=PATH" on stdout and the main loop.
- * SIGTERM/SIGINT: stop listening, abort the current run ("daemon
+ *   5. the worker and runner threads, the web page when configured
+ *      ([web] listen or --web: web.h), signal sources, then "READY
+ *      socket=PATH" (with " web=URL" when the page is served: the bound
+ *      address, also with port 0) on stdout and the main loop.
+ * SIGTERM/SIGINT: stop listening (socket and web page), abort the current run ("daemon
  * stopping": its cube is closed and kept), mark queued runs aborted, let
  * the worker finish its current reconstruction, deliver the last events,
  * close everything, remove the socket, exit 0.  SIGPIPE and SIGXFSZ are
@@ -47,12 +50,14 @@
 #include "dispatch.h"
 #include "framelog.h"
 #include "reserve.h"
+#include "web.h"
+#include "webconf.h"
 /* After GLib: recon's `mask` typedef would clash with gutils.h parameters. */
 #include "sim/mask.h"
 
 typedef struct opts {
-    char *config, *socket, *data_dir;
-    gboolean foreground, quiet, print_defaults, version;
+    char *config, *socket, *data_dir, *web;
+    gboolean foreground, quiet, print_defaults, version, web_allow_remote;
 } opts;
 
 static int parse_opts(int argc, char **argv, opts *o)
@@ -61,6 +66,11 @@ static int parse_opts(int argc, char **argv, opts *o)
         {"config", 'c', 0, G_OPTION_ARG_FILENAME, &o->config, "configuration file", "FILE"},
         {"socket", 's', 0, G_OPTION_ARG_FILENAME, &o->socket, "control socket path", "PATH"},
         {"data-dir", 'd', 0, G_OPTION_ARG_FILENAME, &o->data_dir, "data directory", "DIR"},
+        {"web", 0, 0, G_OPTION_ARG_STRING, &o->web,
+         "serve the live web page on HOST:PORT (port 0: any free; \"\": none), over [web] listen",
+         "HOST:PORT"},
+        {"web-allow-remote", 0, 0, G_OPTION_ARG_NONE, &o->web_allow_remote,
+         "let --web use a non-loopback address (the page has no authentication)", NULL},
         {"foreground", 'f', 0, G_OPTION_ARG_NONE, &o->foreground, "do not detach", NULL},
         {"quiet", 'q', 0, G_OPTION_ARG_NONE, &o->quiet, "log warnings only", NULL},
         {"print-defaults", 0, 0, G_OPTION_ARG_NONE, &o->print_defaults,
@@ -72,8 +82,9 @@ static int parse_opts(int argc, char **argv, opts *o)
     g_option_context_add_main_entries(ctx, entries, NULL);
     g_option_context_set_description(ctx,
         "Serves daemon/PROTOCOL.md on a Unix socket (mode 0660, the daemon's group).\n"
-        "Prints 'READY socket=PATH' once serving, and tells systemd (Type=notify)\n"
-        "when started by it.  SIGTERM/SIGINT stop it cleanly.");
+        "Prints 'READY socket=PATH' once serving (followed by ' web=URL' when it\n"
+        "serves the web page), and tells systemd (Type=notify) when started by it.\n"
+        "SIGTERM/SIGINT stop it cleanly.");
     int ok = g_option_context_parse(ctx, &argc, &argv, &ge);
     if (!ok)
         fprintf(stderr, "specklabd: %s (try --help)\n", ge->message);
@@ -284,6 +295,71 @@ static int detach(void)
     return p[1];
 }
 
+/* The configuration, with --web over [web] listen. */
+static int load_config(config *cfg, const opts *o, sl_err *e)
+{
+    if (config_load(cfg, o->config, o->socket, o->data_dir, e) != SL_OK)
+        return SL_EINVAL;
+    if (o->web && webconf_set(cfg, "--web", o->web, o->web_allow_remote,
+                              "--web-allow-remote", e) != SL_OK) {
+        config_clear(cfg);
+        return SL_EINVAL;
+    }
+    return SL_OK;
+}
+
+/* Ready: the READY line (the tests and scripts/demo read it), systemd,
+ * the log, the parent waiting on the readiness pipe. */
+static void announce(const config *cfg, const web *wb, int *ready_fd)
+{
+    const char *url = wb ? web_url(wb) : "";
+    if (*url)
+        g_message("web page at %s", url);
+    printf("READY socket=%s%s%s\n", cfg->socket, *url ? " web=" : "", url);
+    fflush(stdout);
+    /* systemd Type=notify: ready only now that the socket answers; a
+     * no-op without NOTIFY_SOCKET (started by hand or by a test). */
+    sd_notifyf(0, "READY=1\nSTATUS=serving %s%s%s", cfg->socket, *url ? ", web page " : "", url);
+    g_message("serving %s; data %s; catalogue %s", cfg->socket, cfg->data_dir, cfg->catalog);
+    if (*ready_fd >= 0) {
+        if (write(*ready_fd, "R", 1) != 1)
+            g_warning("readiness pipe: %s", g_strerror(errno));
+        close(*ready_fd);
+        *ready_fd = -1;
+    }
+}
+
+/* Everything main started, stopped in order: listeners first (web page,
+ * socket), then the threads, then what they used. */
+static void shut_down(daemon_ctx *d, web *wb, const config *cfg)
+{
+    web_stop(wb);
+    server_stop_listening(d->srv);
+    runner_stop(d->run);
+    worker_stop(d->wk);
+    /* devices queries in flight end within the stage call timeout. */
+    for (gint64 end = g_get_monotonic_time() + (cfg->call_timeout_ms + 1000) * 1000LL;
+         d->pending_tasks > 0 && g_get_monotonic_time() < end;)
+        g_main_context_iteration(NULL, TRUE);
+    while (g_main_context_iteration(NULL, FALSE))
+        ;   /* the threads' last events and replies, the web's last closes */
+    web_free(wb);
+    runner_free(d->run);
+    worker_free(d->wk);
+    if (d->pending_tasks > 0)   /* a stuck query still holds the server */
+        g_warning("leaving with %d devices queries unanswered", d->pending_tasks);
+    else
+        server_free(d->srv);
+    catalog_close(d->cat);
+}
+
+static int start_web(web **wb, const daemon_ctx *d, const config *cfg, sl_err *e)
+{
+    web_opts wo = {cfg, d->run, d->wk, d->started_us};
+    *wb = NULL;
+    return cfg->web_host ? web_new(wb, &wo, e) : SL_OK;
+}
+
 int main(int argc, char **argv)
 {
     opts o = {0};
@@ -292,20 +368,16 @@ int main(int argc, char **argv)
     int status = 1, lock_fd = -1, ready_fd = -1;
     daemon_ctx d = {0};
     reserve *rs = NULL;
+    web *wb = NULL;
     if ((status = parse_opts(argc, argv, &o)) != 0)
         goto free_opts;
     status = 1;
-    if (o.version) {
-        printf("specklabd %s\n", SPECKLAB_VERSION);
+    if (o.version || o.print_defaults) {
+        fputs(o.version ? "specklabd " SPECKLAB_VERSION "\n" : config_defaults_text(), stdout);
         status = 0;
         goto free_opts;
     }
-    if (o.print_defaults) {
-        fputs(config_defaults_text(), stdout);
-        status = 0;
-        goto free_opts;
-    }
-    if (config_load(&cfg, o.config, o.socket, o.data_dir, &e) != SL_OK) {
+    if (load_config(&cfg, &o, &e) != SL_OK) {
         fprintf(stderr, "specklabd: %s\n", e.msg);
         status = 2;
         goto free_opts;
@@ -330,44 +402,19 @@ int main(int argc, char **argv)
                    dispatch_request, &d, &e) != SL_OK ||
         (rs = reserve_new(cfg.catalog), start_catalog(&cfg, &cat_opts, &d.cat, rs, &e)) != SL_OK ||
         worker_new(&d.wk, &cfg, d.srv, rs, &e) != SL_OK ||
-        runner_new(&d.run, &cfg, d.srv, d.wk, rs, &e) != SL_OK) {
+        runner_new(&d.run, &cfg, d.srv, d.wk, rs, &e) != SL_OK ||
+        start_web(&wb, &d, &cfg, &e) != SL_OK) {
         fprintf(stderr, "specklabd: %s\n", e.msg);
         goto stop;
     }
     g_unix_signal_add(SIGTERM, on_signal, loop);
     g_unix_signal_add(SIGINT, on_signal, loop);
-    printf("READY socket=%s\n", cfg.socket);
-    fflush(stdout);
-    /* systemd Type=notify: ready only now that the socket answers; a
-     * no-op without NOTIFY_SOCKET (started by hand or by a test). */
-    sd_notifyf(0, "READY=1\nSTATUS=serving %s", cfg.socket);
-    g_message("serving %s; data %s; catalogue %s", cfg.socket, cfg.data_dir, cfg.catalog);
-    if (ready_fd >= 0) {
-        if (write(ready_fd, "R", 1) != 1)
-            g_warning("readiness pipe: %s", g_strerror(errno));
-        close(ready_fd);
-        ready_fd = -1;
-    }
+    announce(&cfg, wb, &ready_fd);
     g_main_loop_run(loop);
     status = 0;
     sd_notify(0, "STOPPING=1\nSTATUS=stopping: the current run ends with its frames kept");
 stop:
-    server_stop_listening(d.srv);
-    runner_stop(d.run);
-    worker_stop(d.wk);
-    /* devices queries in flight end within the stage call timeout. */
-    for (gint64 end = g_get_monotonic_time() + (cfg.call_timeout_ms + 1000) * 1000LL;
-         d.pending_tasks > 0 && g_get_monotonic_time() < end;)
-        g_main_context_iteration(NULL, TRUE);
-    while (g_main_context_iteration(NULL, FALSE))
-        ;   /* the threads' last events and replies */
-    runner_free(d.run);
-    worker_free(d.wk);
-    if (d.pending_tasks > 0)   /* a stuck query still holds the server */
-        g_warning("leaving with %d devices queries unanswered", d.pending_tasks);
-    else
-        server_free(d.srv);
-    catalog_close(d.cat);
+    shut_down(&d, wb, &cfg);
     g_main_context_release(g_main_context_default());
     g_main_loop_unref(loop);
     if (lock_fd >= 0)
@@ -378,5 +425,6 @@ free_opts:
     g_free(o.config);
     g_free(o.socket);
     g_free(o.data_dir);
+    g_free(o.web);
     return status;
 }

@@ -19,10 +19,18 @@
 #define SWEEP_MS 500
 
 typedef struct webconn {
+    GSocketAddress *remote;   /* the one given to libsoup: finds the connection again */
     gint64 t0;           /* accepted */
     int upgraded;        /* a WebSocket now: no request deadline */
     int cut;             /* shut down by the deadline */
 } webconn;
+
+static void conn_free(gpointer p)
+{
+    webconn *c = p;
+    g_clear_object(&c->remote);
+    g_free(c);
+}
 
 static void conn_gone(gpointer user, GObject *gone)
 {
@@ -57,29 +65,44 @@ void web_accept(web *w, GIOStream *io)
         return;
     }
     GSocket *s = conn_socket(io);
-    GSocketAddress *local = s ? g_socket_get_local_address(s, NULL) : NULL;
-    GSocketAddress *remote = s ? g_socket_get_remote_address(s, NULL) : NULL;
-    GError *ge = NULL;
-    if (s)
+    GSocketAddress *local = NULL, *remote = NULL;
+    if (s) {
+        local = g_socket_get_local_address(s, NULL);
+        remote = g_socket_get_remote_address(s, NULL);
         g_socket_set_timeout(s, WEB_SILENT_S);
-    webconn *c = g_new0(webconn, 1);
-    c->t0 = g_get_monotonic_time();
-    g_hash_table_insert(w->conns, io, c);
-    g_object_weak_ref(G_OBJECT(io), conn_gone, w);
-    if (!soup_server_accept_iostream(w->soup, io, local, remote, &ge)) {
-        g_message("web: a connection not served: %s", ge ? ge->message : "?");
-        g_clear_error(&ge);
+    } else {   /* not a socket (tests): libsoup wants addresses all the same */
+        GInetAddress *lo = g_inet_address_new_loopback(G_SOCKET_FAMILY_IPV4);
+        local = g_inet_socket_address_new(lo, 0);
+        remote = g_inet_socket_address_new(lo, 0);
+        g_object_unref(lo);
+    }
+    if (!local || !remote) {   /* the peer is gone already (reset) */
         g_io_stream_close(io, NULL, NULL);
+    } else {
+        GError *ge = NULL;
+        webconn *c = g_new0(webconn, 1);
+        c->t0 = g_get_monotonic_time();
+        c->remote = g_object_ref(remote);
+        g_hash_table_insert(w->conns, io, c);
+        g_object_weak_ref(G_OBJECT(io), conn_gone, w);
+        if (!soup_server_accept_iostream(w->soup, io, local, remote, &ge)) {
+            g_message("web: a connection not served: %s", ge ? ge->message : "?");
+            g_clear_error(&ge);
+            g_io_stream_close(io, NULL, NULL);
+        }
     }
     g_clear_object(&local);
     g_clear_object(&remote);
 }
 
-void web_conn_upgraded(web *w, GIOStream *io)
+void web_conn_upgraded(web *w, GSocketAddress *remote)
 {
-    webconn *c = io ? g_hash_table_lookup(w->conns, io) : NULL;
-    if (c)
-        c->upgraded = 1;
+    GHashTableIter it;
+    gpointer val;
+    g_hash_table_iter_init(&it, w->conns);
+    while (remote && g_hash_table_iter_next(&it, NULL, &val))
+        if (((webconn *)val)->remote == remote)
+            ((webconn *)val)->upgraded = 1;
 }
 
 int web_nconnections(const web *w)
@@ -180,7 +203,7 @@ int web_new(web **out, const web_opts *o, sl_err *err)
     w->run = o->run;
     w->wk = o->wk;
     w->started_us = o->started_us;
-    w->conns = g_hash_table_new_full(NULL, NULL, NULL, g_free);
+    w->conns = g_hash_table_new_full(NULL, NULL, NULL, conn_free);
     w->ws = g_ptr_array_new();
     g_queue_init(&w->waits);
     w->soup = soup_server_new("server-header", "specklabd", NULL);

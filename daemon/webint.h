@@ -64,8 +64,9 @@ void web_waits_serve(web *w, int expire_all);
 void web_ws_open(SoupServer *s, SoupServerMessage *msg, const char *path,
                  SoupWebsocketConnection *c, gpointer user);
 void web_ws_close_all(web *w);
-/* Mark a connection as upgraded (no request deadline) - web.c. */
-void web_conn_upgraded(web *w, GIOStream *io);
+/* Mark a connection as upgraded (no request deadline) - web.c; remote:
+ * soup_server_message_get_remote_address of its request. */
+void web_conn_upgraded(web *w, GSocketAddress *remote);
 
 /* webstate.c: JSON texts (owned by w, valid until the next call). */
 const char *web_status_json(web *w);

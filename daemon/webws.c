@@ -148,7 +148,7 @@ void web_ws_open(SoupServer *s, SoupServerMessage *msg, const char *path,
                                         w->stopped ? "stopping" : "not this page's");
         return;
     }
-    web_conn_upgraded(w, soup_websocket_connection_get_io_stream(c));
+    web_conn_upgraded(w, soup_server_message_get_remote_address(msg));
     webws *v = g_new0(webws, 1);
     v->w = w;
     v->c = g_object_ref(c);

@@ -326,6 +326,8 @@ static void print_json(const bench_run *runs, int n, int frames)
         json_object_set_int_member(o, "frames_acquired",
                                    dcmd_int(r->run, "frames_acquired", r->acquired));
         num_member(o, "r0_m", dcmd_num(r->run, "r0_m"));
+        num_member(o, "r0_err_m", dcmd_num(r->run, "r0_err_m"));
+        num_member(o, "r0_wavelength_m", dcmd_num(r->run, "r0_wavelength_m"));
         num_member(o, "seeing_arcsec", dcmd_num(r->run, "seeing_arcsec"));
         static const char *keys[] = {"sep_arcsec", "sep_px", "sep_err_px", "pa_deg",
                                      "pa_err_deg", "dm_mag", "dm_err_mag", "c_cophased"};
@@ -374,6 +376,19 @@ static void print_table(const bench_run *runs, int n)
                dcmd_fmt(c, sizeof c, "%.2f",
                         dcmd_num(dcmd_obj(r->recon, "quality"), "closure_rms_deg")),
                dcmd_fmt(t, sizeof t, "%.1f", run_time_s(r)), r->state ? r->state : "-");
+    }
+    /* r0 holds at a wavelength: say it once, with the runs' errors */
+    for (int i = 0; i < n; i++) {
+        double wl = dcmd_num(runs[i].run, "r0_wavelength_m");
+        if (isfinite(wl)) {
+            printf("r0: from image motion at %.0f nm; 1-sigma", wl * 1e9);
+            for (int k = 0; k < n; k++) {
+                char e[32];
+                printf(" %s", dcmd_fmt(e, sizeof e, "%.3f", dcmd_num(runs[k].run, "r0_err_m")));
+            }
+            printf(" m\n");
+            break;
+        }
     }
     for (int i = 0; i < n; i++) {
         const bench_run *r = &runs[i];

@@ -582,6 +582,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
         m.r0_m = sr.r0_m;
         m.wavelength_m = r->cfg->wavelength_m;
         m.method = "image-motion";
+        m.r0_err_m = sr.r0_err_m;
         if (catalog_r0_add(r->cat, &m, NULL) == SL_OK)
             *r0_m = sr.r0_m;
         else

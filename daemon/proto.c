@@ -248,7 +248,7 @@ char *proto_event_recon(const char *run, JsonNode *recon)
 /* The run's own r0: the newest measurement of its screen made from it. */
 typedef struct r0_find {
     const char *uuid;
-    double r0_m, seeing_arcsec;
+    double r0_m, seeing_arcsec, r0_err_m, wavelength_m;
 } r0_find;
 
 static int r0_match(const catalog_r0 *r, void *user)
@@ -257,6 +257,8 @@ static int r0_match(const catalog_r0 *r, void *user)
     if (r->run_uuid && !g_ascii_strcasecmp(r->run_uuid, f->uuid)) {
         f->r0_m = r->r0_m;
         f->seeing_arcsec = r->seeing_arcsec;
+        f->r0_err_m = r->r0_err_m;
+        f->wavelength_m = r->wavelength_m;
     }
     return 0;
 }
@@ -273,7 +275,7 @@ static void add_json_text(JsonBuilder *b, const char *key, const char *text)
 
 JsonNode *proto_run_node(catalog *c, const catalog_run *r)
 {
-    r0_find f = {r->uuid, NAN, NAN};
+    r0_find f = {r->uuid, NAN, NAN, NAN, NAN};
     if (r->screen_name)
         catalog_r0_list(c, r->screen_name, r->created_ms, r0_match, &f);
     JsonBuilder *b = json_builder_new();
@@ -299,6 +301,10 @@ JsonNode *proto_run_node(catalog *c, const catalog_run *r)
     proto_add_str(b, "sha256", r->file_sha256);
     proto_add_dbl(b, "r0_m", f.r0_m);
     proto_add_dbl(b, "seeing_arcsec", f.seeing_arcsec);
+    /* r0 holds at a wavelength (r0 ~ lambda^(6/5)): say which, with the
+     * measurement's error */
+    proto_add_dbl(b, "r0_err_m", f.r0_err_m);
+    proto_add_dbl(b, "r0_wavelength_m", f.wavelength_m);
     json_builder_end_object(b);
     JsonNode *n = json_builder_get_root(b);
     g_object_unref(b);

@@ -328,6 +328,7 @@ typedef struct catalog_r0 {
     double seeing_arcsec;    /* NaN on insert: 0.98 wavelength / r0 */
     double wavelength_m;
     const char *method;      /* "stf", "image-motion", ... */
+    double r0_err_m;         /* 1-sigma, at wavelength_m; NaN: not stated */
 } catalog_r0;
 typedef int (*catalog_r0_fn)(const catalog_r0 *r, void *user);
 

@@ -243,7 +243,7 @@ int catalog_mask_list(catalog *c, catalog_mask_fn fn, void *user)
 void catalog_r0_init(catalog_r0 *r)
 {
     memset(r, 0, sizeof *r);
-    r->r0_m = r->seeing_arcsec = r->wavelength_m = NAN;
+    r->r0_m = r->seeing_arcsec = r->wavelength_m = r->r0_err_m = NAN;
 }
 
 int catalog_r0_add(catalog *c, const catalog_r0 *r, int64_t *id_out)
@@ -257,10 +257,12 @@ int catalog_r0_add(catalog *c, const catalog_r0 *r, int64_t *id_out)
     if (!(isfinite(r->r0_m) && r->r0_m > 0) ||
         !(isfinite(r->wavelength_m) && r->wavelength_m > 0) ||
         !(isnan(r->seeing_arcsec) ||
-          (isfinite(r->seeing_arcsec) && r->seeing_arcsec > 0)))
-        return cat_seterr(c, SL_EINVAL, "catalogue %s: r0 %g m at %g m "
-                          "(seeing %g arcsec): each must be finite and > 0",
-                          c->path, r->r0_m, r->wavelength_m, r->seeing_arcsec);
+          (isfinite(r->seeing_arcsec) && r->seeing_arcsec > 0)) ||
+        !(isnan(r->r0_err_m) || (isfinite(r->r0_err_m) && r->r0_err_m >= 0)))
+        return cat_seterr(c, SL_EINVAL, "catalogue %s: r0 %g m +- %g at %g m "
+                          "(seeing %g arcsec): each must be finite and > 0 "
+                          "(the error >= 0, or NaN: not stated)",
+                          c->path, r->r0_m, r->r0_err_m, r->wavelength_m, r->seeing_arcsec);
     if (!r->screen_name && !r->run_uuid)
         return cat_seterr(c, SL_EINVAL, "catalogue %s: an r0 measurement "
                           "needs a screen or a run", c->path);
@@ -302,6 +304,7 @@ int catalog_r0_add(catalog *c, const catalog_r0 *r, int64_t *id_out)
         sqlite3_bind_double(st, 5, seeing);
         sqlite3_bind_double(st, 6, r->wavelength_m);
         cat_bind_text(st, 7, r->method);
+        cat_bind_double(st, 8, r->r0_err_m);
         rc = cat_run(c, st, what);
         if (rc != SL_OK && c->last_rc == SQLITE_CONSTRAINT_FOREIGNKEY)
             rc = cat_seterr(c, SL_EINVAL, "catalogue %s: %s: run %s is not "
@@ -329,6 +332,7 @@ static int r0_row(catalog *c, sqlite3_stmt *st, void *ctx)
     r.seeing_arcsec = cat_col_double(st, 5);
     r.wavelength_m = cat_col_double(st, 6);
     r.method = cat_col_text(st, 7);
+    r.r0_err_m = cat_col_double(st, 8);
     return e->fn(&r, e->user);
 }
 

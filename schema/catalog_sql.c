@@ -140,11 +140,11 @@ const char *const cat_sql[CS_COUNT] = {
 
     [CS_R0_INSERT] =
         "INSERT INTO screen_r0 (screen_id, run_uuid, measured_ms, r0_m, "
-        "seeing_arcsec, wavelength_m, method) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+        "seeing_arcsec, wavelength_m, method, r0_err_m) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
     [CS_R0_LIST] =
         "SELECT r.id, s.name, r.run_uuid, r.measured_ms, r.r0_m, "
-        "r.seeing_arcsec, r.wavelength_m, r.method "
+        "r.seeing_arcsec, r.wavelength_m, r.method, r.r0_err_m "
         "FROM screen_r0 AS r JOIN screens AS s ON s.id = r.screen_id "
         "WHERE (?1 IS NULL OR s.name = ?1) AND r.measured_ms >= ?2 "
         "ORDER BY r.measured_ms, r.id",

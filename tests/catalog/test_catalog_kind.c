@@ -4,7 +4,8 @@
  * version-2 catalogue's runs become science runs, and the lookup picks
  * exactly the run catalog.h promises (same camera, format, ROI, a dark's
  * exposure, a calibrator's screen and mask; done, with a file; nearest in
- * time) against a brute-force reading of the same rule.
+ * time) against a brute-force reading of the same rule; an r0's error
+ * (004_r0_error.sql) round-trips, unknown as NULL, negative refused.
  */
 #include "catalog_fx.h"
 
@@ -111,6 +112,7 @@ FXTEST(version_2_runs_become_science_runs)
     f->c = NULL;
     /* back to version 2 as an old daemon left it: no kind column */
     CHECK(raw_exec(f->path, "DROP INDEX runs_by_kind; ALTER TABLE runs DROP COLUMN kind; "
+                            "ALTER TABLE screen_r0 DROP COLUMN r0_err_m; "
                             "PRAGMA user_version = 2") == SQLITE_OK, "downgrade");
     CHECK(raw_int(f->path, "SELECT count(*) FROM pragma_table_info('runs') "
                            "WHERE name = 'kind'") == 0, "kind still there");
@@ -190,6 +192,34 @@ FXTEST(calibration_lookup_follows_the_rule)
           strstr(catalog_errmsg(f->c), "no run"), "%s", catalog_errmsg(f->c));
 }
 
-TC_MAIN(TC_CASE(kinds_round_trip_filter_and_are_checked),
+static int last_r0(const catalog_r0 *r, void *user)
+{
+    *(catalog_r0 *)user = *r;   /* strings unused after the call */
+    return SL_OK;
+}
+
+FXTEST(r0_error_round_trips)
+{
+    OPEN_OK(f);
+    CHECK(catalog_screen_upsert(f->c, "s", 1, NULL, NULL) == SL_OK, "%s", catalog_errmsg(f->c));
+    catalog_r0 m, got;
+    catalog_r0_init(&m);
+    m.screen_name = "s", m.method = "image-motion", m.r0_m = 0.2, m.wavelength_m = 633e-9;
+    CHECK(catalog_r0_add(f->c, &m, NULL) == SL_OK, "%s", catalog_errmsg(f->c));
+    CHECK(catalog_r0_list(f->c, "s", 0, last_r0, &got) == SL_OK && isnan(got.r0_err_m),
+          "no error stated: %g", got.r0_err_m);
+    CHECK(raw_int(f->path, "SELECT count(*) FROM screen_r0 WHERE r0_err_m IS NULL") == 1,
+          "not NULL in the file");
+    m.r0_err_m = 0.034;
+    m.measured_ms = catalog_now_ms() + 1000;
+    CHECK(catalog_r0_add(f->c, &m, NULL) == SL_OK, "%s", catalog_errmsg(f->c));
+    CHECK(catalog_r0_list(f->c, "s", 0, last_r0, &got) == SL_OK && got.r0_err_m == 0.034,
+          "error %g, stored 0.034", got.r0_err_m);
+    m.r0_err_m = -0.01;
+    CHECK(catalog_r0_add(f->c, &m, NULL) == SL_EINVAL && strstr(catalog_errmsg(f->c), "error"),
+          "a negative error: %s", catalog_errmsg(f->c));
+}
+
+TC_MAIN(TC_CASE(kinds_round_trip_filter_and_are_checked), TC_CASE(r0_error_round_trips),
         TC_CASE(version_2_runs_become_science_runs),
         TC_CASE(calibration_lookup_follows_the_rule))

@@ -19,7 +19,9 @@
 #define SWEEP_MS 500
 
 typedef struct webconn {
+    GSocketAddress *local;
     GSocketAddress *remote;   /* the one given to libsoup: finds the connection again */
+    webpeek *peek;            /* its head being checked (webpeek.c); NULL after */
     gint64 t0;           /* accepted */
     int upgraded;        /* a WebSocket now: no request deadline */
     int cut;             /* shut down by the deadline */
@@ -28,6 +30,7 @@ typedef struct webconn {
 static void conn_free(gpointer p)
 {
     webconn *c = p;
+    g_clear_object(&c->local);
     g_clear_object(&c->remote);
     g_free(c);
 }
@@ -58,6 +61,16 @@ static void refuse(GIOStream *io)
     g_io_stream_close(io, NULL, NULL);
 }
 
+static void to_soup(web *w, webconn *c, GIOStream *io)
+{
+    GError *ge = NULL;
+    if (!soup_server_accept_iostream(w->soup, io, c->local, c->remote, &ge)) {
+        g_message("web: a connection not served: %s", ge ? ge->message : "?");
+        g_clear_error(&ge);
+        g_io_stream_close(io, NULL, NULL);
+    }
+}
+
 void web_accept(web *w, GIOStream *io)
 {
     if (w->stopped || (int)g_hash_table_size(w->conns) >= w->cfg->web_max_connections) {
@@ -66,33 +79,43 @@ void web_accept(web *w, GIOStream *io)
     }
     GSocket *s = conn_socket(io);
     GSocketAddress *local = NULL, *remote = NULL;
-    if (s) {
+    if (s && g_socket_get_family(s) != G_SOCKET_FAMILY_UNIX) {
         local = g_socket_get_local_address(s, NULL);
         remote = g_socket_get_remote_address(s, NULL);
-        g_socket_set_timeout(s, WEB_SILENT_S);
-    } else {   /* not a socket (tests): libsoup wants addresses all the same */
+    } else {   /* the fuzz target's socketpair: libsoup wants IP addresses */
         GInetAddress *lo = g_inet_address_new_loopback(G_SOCKET_FAMILY_IPV4);
         local = g_inet_socket_address_new(lo, 0);
         remote = g_inet_socket_address_new(lo, 0);
         g_object_unref(lo);
     }
+    if (s)
+        g_socket_set_timeout(s, WEB_SILENT_S);
     if (!local || !remote) {   /* the peer is gone already (reset) */
         g_io_stream_close(io, NULL, NULL);
     } else {
-        GError *ge = NULL;
         webconn *c = g_new0(webconn, 1);
         c->t0 = g_get_monotonic_time();
+        c->local = g_object_ref(local);
         c->remote = g_object_ref(remote);
         g_hash_table_insert(w->conns, io, c);
         g_object_weak_ref(G_OBJECT(io), conn_gone, w);
-        if (!soup_server_accept_iostream(w->soup, io, local, remote, &ge)) {
-            g_message("web: a connection not served: %s", ge ? ge->message : "?");
-            g_clear_error(&ge);
-            g_io_stream_close(io, NULL, NULL);
-        }
+        if (s)
+            c->peek = web_peek_start(w, io, s);
+        else
+            to_soup(w, c, io);
     }
     g_clear_object(&local);
     g_clear_object(&remote);
+}
+
+void web_peek_done(web *w, webpeek *p, GIOStream *io, int st)
+{
+    webconn *c = g_hash_table_lookup(w->conns, io);
+    (void)p;
+    if (c)
+        c->peek = NULL;
+    if (c && st == 1)
+        to_soup(w, c, io);
 }
 
 void web_conn_upgraded(web *w, GSocketAddress *remote)
@@ -108,6 +131,11 @@ void web_conn_upgraded(web *w, GSocketAddress *remote)
 int web_nconnections(const web *w)
 {
     return (int)g_hash_table_size(w->conns);
+}
+
+webview *web_view(const web *w)
+{
+    return w->view;
 }
 
 static gboolean on_incoming(GSocketService *svc, GSocketConnection *conn, GObject *src,
@@ -243,13 +271,19 @@ void web_stop(web *w)
     web_waits_serve(w, 1);
     web_ws_close_all(w);
     GHashTableIter it;
-    gpointer key;
+    gpointer key, val;
+    GPtrArray *peeks = g_ptr_array_new();
     g_hash_table_iter_init(&it, w->conns);
-    while (g_hash_table_iter_next(&it, &key, NULL)) {
+    while (g_hash_table_iter_next(&it, &key, &val)) {
         GSocket *s = conn_socket(key);
-        if (s)
+        if (((webconn *)val)->peek)
+            g_ptr_array_add(peeks, ((webconn *)val)->peek), ((webconn *)val)->peek = NULL;
+        else if (s)
             g_socket_shutdown(s, TRUE, TRUE, NULL);
     }
+    for (guint i = 0; i < peeks->len; i++)   /* may drop connections from the table */
+        web_peek_cancel(peeks->pdata[i]);
+    g_ptr_array_free(peeks, TRUE);
     webview_free(w->view);   /* joins: no products notice after this */
     w->view = NULL;
     if (w->sweep_id)

@@ -19,6 +19,11 @@
  * runner's and worker's status and a read-only use of the catalogue
  * through a handle of the web's own (main thread).
  *
+ * Served on loopback, a request whose Host is not an IP address or
+ * localhost gets 421 (another site's name pointed at 127.0.0.1, DNS
+ * rebinding, must not let its scripts read the bench), and a WebSocket
+ * from a browser must come from the page's own Origin.
+ *
  * Limits, so that a client cannot hurt the daemon: at most
  * cfg->web_max_connections connections (more get 503 and are closed); a
  * connection that has not completed its request within 10 s, or is silent
@@ -39,6 +44,7 @@
 #include "base/status.h"
 #include "config.h"
 #include "runner.h"
+#include "webview.h"
 #include "worker.h"
 
 typedef struct web web;
@@ -60,6 +66,8 @@ const char *web_url(const web *w);
  * under the same limits. */
 void web_accept(web *w, GIOStream *conn);
 int web_nconnections(const web *w);
+/* The view's thread (tests: to wait for its first images). */
+webview *web_view(const web *w);
 /* Stop listening, answer waiting requests, close every connection, stop
  * the view's thread.  Then run the main context dry before web_free. */
 void web_stop(web *w);

@@ -16,6 +16,7 @@
 #define WEB_WS_MAX_MSG 4096       /* incoming WebSocket message */
 #define WEB_WS_BACKLOG (256 * 1024) /* unsent bytes that pause a WebSocket */
 #define WEB_RATE_SAMPLES 32
+#define WEB_HEAD_MAX 32768        /* request head, checked by webpeek.c */
 
 /* A rate estimate's sample: frames acquired at a time. */
 typedef struct web_sample {
@@ -55,10 +56,19 @@ struct web {
     int nsamples;
 };
 
+/* webpeek.c: a new connection's request head checked before libsoup;
+ * web_peek_done (web.c) gets the verdict: st 1 hands it on, else it is
+ * answered (refused) or closed by the peek. */
+typedef struct webpeek webpeek;
+webpeek *web_peek_start(web *w, GIOStream *io, GSocket *s);
+void web_peek_cancel(webpeek *p);
+void web_peek_done(web *w, webpeek *p, GIOStream *io, int st);
+
 /* webroute.c: the default handler, and the image requests that wait. */
 void web_route(SoupServer *s, SoupServerMessage *msg, const char *path, GHashTable *query,
                gpointer user);
 void web_waits_serve(web *w, int expire_all);
+int web_host_ok(const web *w, SoupServerMessage *msg);
 
 /* webws.c */
 void web_ws_open(SoupServer *s, SoupServerMessage *msg, const char *path,

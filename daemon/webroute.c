@@ -180,6 +180,32 @@ static const struct {
     {"/api/recon.png", recon},
 };
 
+/* Served on loopback, the page answers only to a Host that is an IP
+ * address or localhost: a name another site's DNS points at 127.0.0.1
+ * (DNS rebinding) must not let that site's scripts read the bench. */
+int web_host_ok(const web *w, SoupServerMessage *msg)
+{
+    const char *host = soup_message_headers_get_one(
+        soup_server_message_get_request_headers(msg), "Host");
+    if (!w->cfg->web_loopback || !host)
+        return 1;   /* HTTP/1.0 without Host: no browser sends that */
+    char name[300];
+    const char *end = host[0] == '[' ? strchr(host, ']') : strrchr(host, ':');
+    size_t n = host[0] == '[' ? (end ? (size_t)(end - host) + 1 : 0)
+                              : end ? (size_t)(end - host) : strlen(host);
+    if (n == 0 || n >= sizeof name)
+        return 0;
+    memcpy(name, host, n);
+    name[n] = '\0';
+    if (!g_ascii_strcasecmp(name, "localhost"))
+        return 1;
+    if (name[0] == '[') {
+        name[n - 1] = '\0';
+        return g_hostname_is_ip_address(name + 1) && strchr(name + 1, ':');
+    }
+    return g_hostname_is_ip_address(name);
+}
+
 void web_route(SoupServer *s, SoupServerMessage *msg, const char *path, GHashTable *query,
                gpointer user)
 {
@@ -188,6 +214,11 @@ void web_route(SoupServer *s, SoupServerMessage *msg, const char *path, GHashTab
     const char *method = soup_server_message_get_method(msg);
     if (w->stopped) {
         reply_text(msg, 503, "text/plain", "specklabd is stopping\n");
+        return;
+    }
+    if (!web_host_ok(w, msg)) {
+        reply_text(msg, 421, "text/plain", "this page answers to an IP address or localhost\n");
+        soup_server_message_set_status(msg, 421, "Misdirected Request");
         return;
     }
     for (size_t i = 0; i < G_N_ELEMENTS(routes); i++)

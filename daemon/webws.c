@@ -143,7 +143,8 @@ void web_ws_open(SoupServer *s, SoupServerMessage *msg, const char *path,
 {
     web *w = user;
     (void)s;
-    if (w->stopped || g_strcmp0(path, "/api/events") || !origin_ok(msg)) {
+    if (w->stopped || g_strcmp0(path, "/api/events") || !origin_ok(msg) ||
+        !web_host_ok(w, msg)) {
         soup_websocket_connection_close(c, SOUP_WEBSOCKET_CLOSE_POLICY_VIOLATION,
                                         w->stopped ? "stopping" : "not this page's");
         return;

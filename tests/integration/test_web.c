@@ -115,6 +115,17 @@ static void check_page_and_errors(tc *t)
     } bad[] = {{"GET", "/nope", 404},        {"GET", "/api/status/x", 404},
                {"GET", "/api/../etc/passwd", 404}, {"POST", "/api/status", 405},
                {"DELETE", "/", 405},          {"GET", "/api/frame.png?stretch=x", 400}};
+    /* another site's name for 127.0.0.1 (DNS rebinding) */
+    int fd = web_connect("127.0.0.1", WEB_PORT, 5);
+    const char *rebind = "GET /api/status HTTP/1.1\r\nHost: evil.example:8080\r\n\r\n";
+    memset(&r, 0, sizeof r);
+    if (fd >= 0 && web_send_all(fd, rebind, strlen(rebind)) == 0)
+        web_read_reply(fd, &r, 10);
+    if (fd >= 0)
+        close(fd);
+    st = r.status;
+    web_reply_clear(&r);
+    CHECK(st == 421, "Host: evil.example answered %d, expected 421", st);
     for (size_t i = 0; i < G_N_ELEMENTS(bad); i++) {
         web_request("127.0.0.1", WEB_PORT, bad[i].method, bad[i].path, &r);
         st = r.status;

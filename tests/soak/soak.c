@@ -104,7 +104,9 @@ static void opts_load(soak_opts *o)
     snprintf(o->long_method, sizeof o->long_method, "%s", v && *v ? v : "");
     o->load_frames = env_int("SOAK_LOAD_FRAMES", 1000, 0, 100000);
     o->load_hogs = env_int("SOAK_LOAD_HOGS", 1, 0, 64);
-    o->load_projections = env_int("SOAK_LOAD_PROJECTIONS", 720, 1, 4096);
+    /* 400: about the most a 128 px frame resolves (pi x 128 = 402; more is
+     * refused), so the reconstructions last through the load phase */
+    o->load_projections = env_int("SOAK_LOAD_PROJECTIONS", 400, 1, 4096);
 }
 
 /* ---- the daemon as /proc sees it ------------------------------------------ */

@@ -113,7 +113,7 @@ ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
 
 PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd)
 
-.PHONY: all deps test quick stress soak asan asan-ci-build valgrind bench fuzz demo clean
+.PHONY: all deps test quick stress soak soak-web asan asan-ci-build valgrind bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
 
 $(BUILD)/recon/%.o: recon/%.c
@@ -272,9 +272,23 @@ bench: all
 stress: all
 	@SL_STRESS_FULL=1 tests/run $(TSTR_BIN)
 
-# Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/).
-soak: all $(SOAK_BIN)
-	@$(SOAK_BIN)
+# The web page's viewers during acquisitions (make soak-web, also run by
+# make soak): three 1000-frame runs, the middle one watched by ten viewers.
+SOAK_WEB_BIN := $(BUILD)/soak/web-viewers
+$(SOAK_WEB_BIN): tests/soak/web/viewers.c tests/integration/daemon_fx.h \
+                 tests/integration/daemon_client.h tests/integration/web_fx.h $(SCHEMA_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+
+# Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/),
+# then the web page's ten viewers (~1 min).
+soak: all $(SOAK_BIN) $(SOAK_WEB_BIN)
+	@$(SOAK_BIN) && $(SOAK_WEB_BIN)
+
+soak-web: all $(SOAK_WEB_BIN)
+	@$(SOAK_WEB_BIN)
 
 # The whole suite under AddressSanitizer + UndefinedBehaviorSanitizer, in a
 # separate build tree.

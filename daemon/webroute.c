@@ -119,7 +119,7 @@ static void image(web *w, SoupServerMessage *msg, GHashTable *query, int kind)
     runner_status rs;
     webview_info_get(w->view, &vi);
     runner_status_get(w->run, &rs);
-    int coming = rs.current[0] != '\0' || vi.seq > 0;
+    int coming = rs.current[0] != '\0' || vi.seq > 0 || webtap_seq(runner_tap(w->run)) > 0;
     g_strfreev(rs.queue);
     if (!coming || w->stopped) {
         reply_text(msg, 503, "text/plain", "no frame yet: start a run\n");

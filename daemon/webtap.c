@@ -6,6 +6,7 @@
 struct webtap {
     gint want;             /* atomic: 1 = copy the next offered frame */
     gint skipped;          /* atomic (wraps after 2^32) */
+    gint64 last_us;        /* the last copy: the offering thread's own */
     GMutex mu;             /* the slot: */
     float *pix;
     size_t cap;
@@ -33,7 +34,11 @@ void webtap_free(webtap *t)
 
 void webtap_offer(webtap *t, const char *uuid, const float *pix, int w, int h)
 {
-    if (!t || !g_atomic_int_get(&t->want) || w <= 0 || h <= 0)
+    if (!t || w <= 0 || h <= 0)
+        return;
+    /* unasked, one frame a second keeps the slot recent for a new viewer */
+    gint64 now = g_get_monotonic_time();
+    if (!g_atomic_int_get(&t->want) && now - t->last_us < WEBTAP_IDLE_US)
         return;
     if (!g_mutex_trylock(&t->mu)) {
         g_atomic_int_inc(&t->skipped);
@@ -49,7 +54,8 @@ void webtap_offer(webtap *t, const char *uuid, const float *pix, int w, int h)
         memcpy(t->pix, pix, n * sizeof *pix);
         t->w = w, t->h = h;
         t->seq++;
-        t->t_us = g_get_monotonic_time();
+        t->t_us = now;
+        t->last_us = now;
         g_strlcpy(t->uuid, uuid ? uuid : "", sizeof t->uuid);
         g_atomic_int_set(&t->want, 0);
     }
@@ -82,6 +88,17 @@ int webtap_take(webtap *t, webtap_frame *f)
     }
     g_mutex_unlock(&t->mu);
     return got;
+}
+
+guint64 webtap_seq(webtap *t)
+{
+    guint64 seq = 0;
+    if (t) {
+        g_mutex_lock(&t->mu);
+        seq = t->seq;
+        g_mutex_unlock(&t->mu);
+    }
+    return seq;
 }
 
 guint64 webtap_skipped(webtap *t)

@@ -6,10 +6,12 @@
  * offers into the slot, but only when one was asked for and only when it
  * gets the slot's mutex at once (g_mutex_trylock): when the web side is
  * copying out at that moment the frame is skipped (counted), never waited
- * for.  When nobody asked, an offer costs one atomic read.  So the copies
- * follow the viewers' rate, not the camera's, and a slow, stuck or absent
- * web side cannot delay a frame.  The slot keeps the last frame after the
- * run ends.
+ * for.  When nobody asked, one frame a second is copied all the same, so
+ * that a viewer arriving during or after a run sees a recent frame at
+ * once; any other offer costs a clock read and an atomic read.  So the
+ * copies follow the viewers' rate, not the camera's, and a slow, stuck or
+ * absent web side cannot delay a frame.  The slot keeps the last frame
+ * after the run ends.
  */
 #ifndef SL_DAEMON_WEBTAP_H
 #define SL_DAEMON_WEBTAP_H
@@ -18,6 +20,7 @@
 #include <stddef.h>
 
 #define WEBTAP_UUID_LEN 36
+#define WEBTAP_IDLE_US 1000000   /* a copy at least this often, asked or not */
 
 typedef struct webtap webtap;
 
@@ -43,6 +46,8 @@ typedef struct webtap_frame {
 /* When the slot holds a newer frame than f->seq, copy it into f and
  * return 1; else 0. */
 int webtap_take(webtap *t, webtap_frame *f);
+/* The slot's frame count (0: never a frame). */
+guint64 webtap_seq(webtap *t);
 /* Frames asked for but skipped because the slot was busy. */
 guint64 webtap_skipped(webtap *t);
 

@@ -131,6 +131,11 @@ const char *stage_label(const stage *s)
     return stage_link_label(s->link);
 }
 
+unsigned stage_rejected_replies(const stage *s)
+{
+    return stage_link_rejected(s->link);
+}
+
 int stage_connected(stage *s)
 {
     return stage_link_connected(s->link);

@@ -18,6 +18,14 @@
  * answering for at most cfg.call_timeout_ms: a stage that refuses
  * connections or is gone fails the wait then, not at its own timeout.
  *
+ * On rtu (a serial line) "connection" is the open port: reconnecting
+ * reopens and flushes it, a line holding bytes nobody asked for between
+ * calls is reset, and a reply the line damaged (bad CRC, a byte lost: the
+ * frame stops short, found after a silence of 50 ms or 4 characters, not
+ * the response timeout) resets it as a bad reply does; a read is then
+ * asked again within the call's bound (stage_rejected_replies counts
+ * them).  A request the line damaged is not answered: a timeout.
+ *
  * Connecting is lazy: stage_new only builds the handle (so an RTU handle
  * can be made without its serial port, and a daemon can start before the
  * stage is powered).  Each (re)connection reads registers 0..2 and the
@@ -88,6 +96,11 @@ void stage_free(stage *s);
 const char *stage_errmsg(const stage *s);
 /* "HOST:PORT" or the serial device: the prefix of every message. */
 const char *stage_label(const stage *s);
+/* Replies damaged on a serial line (rtu: a CRC that does not match, a
+ * frame cut short, one that does not fit its request) since stage_new:
+ * each was rejected, the line reset, and a read asked again (a command
+ * reported).  0 on tcp. */
+unsigned stage_rejected_replies(const stage *s);
 /* 1 while a verified connection is open and the stage has not closed it
  * (a restarted stage closes it; checked on the socket, no request sent,
  * and a dead connection is closed so the next call opens a new one). */

@@ -21,6 +21,25 @@
  * deadline): a read changes nothing at the stage, whereas a command may
  * or may not have been executed, so a failed write is reported and the
  * next call reconnects.
+ *
+ * RTU (a serial line, RS-485): the same policy, with what a line adds.
+ * "Reconnecting" closes and reopens the port, and a reopened port is
+ * flushed: what a late reply left on the line is dropped.  A reply that
+ * arrives later still (after the flush) cannot pass for the answer to a
+ * later request: every reconnection first reads the identity (3 registers
+ * at 0) and the wheel blocks (22 registers), and the stage answers in
+ * order, so a stale reply meets the identity read, whose byte count no
+ * other request of this driver has (stage_info's identical read aside,
+ * whose answer is the same), and is rejected there.  Between requests a
+ * line holding unasked-for bytes is out of step and is reset before the
+ * next request (the serial counterpart of the TCP check above).  A frame
+ * damaged on the line - a byte corrupted (its CRC does not match) or lost
+ * (the frame stops short: the byte timeout, RTU_GAP_MS or 4 characters,
+ * ends it well before the response timeout) - is a line error: the link
+ * is reset as after any bad reply, and a read is asked again within its
+ * deadline (READ_RETRIES times), a write is reported.  A request damaged
+ * on its way to the stage is not answered (the stage checks the CRC):
+ * that is a timeout, as on TCP.
  */
 #include "stage_modbus.h"
 
@@ -36,8 +55,12 @@
 
 #include <modbus.h>
 
-/* A read whose link dropped mid-request is asked again this many times. */
+/* A read whose link dropped mid-request (or whose reply a serial line
+ * damaged) is asked again this many times. */
 #define READ_RETRIES 2
+/* RTU: the longest silence inside a frame, at least (USB serial adapters
+ * deliver in chunks up to 16 ms apart); 4 characters if that is longer. */
+#define RTU_GAP_MS 50
 
 /* A transport: how to make its libmodbus context and what to do after a
  * connection is up.  Everything else is protocol-generic. */
@@ -46,8 +69,11 @@ typedef struct stage_backend {
     modbus_t *(*create)(const stage_config *cfg, char *label, size_t n,
                         sl_err *e);
     void (*on_connect)(modbus_t *ctx);
-    /* 0 when an open connection can no longer carry a request. */
-    int (*alive)(modbus_t *ctx);
+    /* Why an open connection can no longer carry a request; NULL: it can. */
+    const char *(*dead)(modbus_t *ctx);
+    /* A damaged reply is a line error (retried for reads), not a
+     * symptom of a connection gone wrong. */
+    int line_errors;
 } stage_backend;
 
 struct stage_link {
@@ -55,6 +81,8 @@ struct stage_link {
     modbus_t *ctx;
     char label[160];
     int response_ms, backoff_min_ms, backoff_max_ms;
+    int byte_ms;       /* longest silence inside a reply */
+    unsigned rejected; /* damaged replies (CRC, cut short, mismatched) */
     int connected;
     int outcome;       /* STAGE_LINK_*: how the last request ended */
     double next_try_s; /* no connection attempt before this */
@@ -102,15 +130,21 @@ static void tcp_on_connect(modbus_t *ctx)
     (void)ctx; /* a fresh socket has nothing stale in it */
 }
 
-/* Between requests nothing may be waiting on the socket: the peer's FIN
- * (the stage restarted or closed it: readable, end of stream), an error or
- * hang-up, or bytes no request asked for (a late reply).  One poll, no
- * traffic. */
-static int tcp_alive(modbus_t *ctx)
+/* 1 when something waits on the descriptor (or it is unusable).  One
+ * poll, no traffic. */
+static int pending_input(modbus_t *ctx)
 {
     struct pollfd p = {modbus_get_socket(ctx), POLLIN, 0};
     int n = poll(&p, 1, 0);
-    return p.fd >= 0 && n == 0;
+    return p.fd < 0 || n != 0;
+}
+
+/* Between requests nothing may be waiting on the socket: the peer's FIN
+ * (the stage restarted or closed it: readable, end of stream), an error or
+ * hang-up, or bytes no request asked for (a late reply). */
+static const char *tcp_dead(modbus_t *ctx)
+{
+    return pending_input(ctx) ? "connection closed by the stage" : NULL;
 }
 
 static modbus_t *rtu_create(const stage_config *cfg, char *label, size_t n,
@@ -139,15 +173,17 @@ static void rtu_on_connect(modbus_t *ctx)
     modbus_flush(ctx); /* drop bytes left on the line by an earlier exchange */
 }
 
-static int rtu_alive(modbus_t *ctx)
+/* A serial line has no connection to lose, but bytes waiting between
+ * requests (a reply that came after its timeout) put it out of step. */
+static const char *rtu_dead(modbus_t *ctx)
 {
-    (void)ctx; /* a serial line has no connection to lose */
-    return 1;
+    return pending_input(ctx) ? "unasked-for bytes on the line between "
+                                "requests (a late reply?)" : NULL;
 }
 
 static const stage_backend backends[] = {
-    {"tcp", tcp_create, tcp_on_connect, tcp_alive},
-    {"rtu", rtu_create, rtu_on_connect, rtu_alive},
+    {"tcp", tcp_create, tcp_on_connect, tcp_dead, 0},
+    {"rtu", rtu_create, rtu_on_connect, rtu_dead, 1},
 };
 #define NBACKENDS ((int)(sizeof backends / sizeof backends[0]))
 
@@ -181,6 +217,13 @@ int stage_link_new(stage_link **out, const stage_config *cfg, sl_err *err)
     l->response_ms = cfg->response_timeout_ms;
     l->backoff_min_ms = l->backoff_ms = cfg->backoff_min_ms;
     l->backoff_max_ms = cfg->backoff_max_ms;
+    l->byte_ms = l->response_ms;
+    if (be->line_errors && cfg->baud > 0) {
+        /* 11 bits a character at most (start, 8 data, parity, stop) */
+        int four_chars_ms = (int)ceil(4 * 11 * 1000.0 / cfg->baud);
+        int gap = four_chars_ms > RTU_GAP_MS ? four_chars_ms : RTU_GAP_MS;
+        l->byte_ms = gap < l->response_ms ? gap : l->response_ms;
+    }
     snprintf(l->last, sizeof l->last, "never connected");
     l->ctx = be->create(cfg, l->label, sizeof l->label, err);
     if (!l->ctx) {
@@ -224,11 +267,12 @@ const char *stage_link_label(const stage_link *l)
  * request of ours). */
 static void drop_if_dead(stage_link *l)
 {
-    if (!l->connected || l->be->alive(l->ctx))
+    const char *why = l->connected ? l->be->dead(l->ctx) : NULL;
+    if (!why)
         return;
     modbus_close(l->ctx);
     l->connected = 0;
-    snprintf(l->last, sizeof l->last, "connection closed by the stage");
+    snprintf(l->last, sizeof l->last, "%s", why);
 }
 
 int stage_link_connected(stage_link *l)
@@ -247,15 +291,22 @@ const stage_ident *stage_link_ident(const stage_link *l)
     return &l->ident;
 }
 
-/* Both libmodbus timeouts: the wait for the first byte of a reply and the
- * gap between its bytes.  Capped by the caller to the time left. */
+unsigned stage_link_rejected(const stage_link *l)
+{
+    return l->rejected;
+}
+
+/* Both libmodbus timeouts: the wait for the first byte of a reply (ms,
+ * capped by the caller to the time left) and the gap between its bytes
+ * (the link's byte_ms, within the same cap). */
 static void set_timeouts(stage_link *l, int ms)
 {
     ms = ms < 1 ? 1 : ms;
+    int gap = l->byte_ms < ms ? l->byte_ms : ms;
     modbus_set_response_timeout(l->ctx, (uint32_t)(ms / 1000),
                                 (uint32_t)(ms % 1000) * 1000u);
-    modbus_set_byte_timeout(l->ctx, (uint32_t)(ms / 1000),
-                            (uint32_t)(ms % 1000) * 1000u);
+    modbus_set_byte_timeout(l->ctx, (uint32_t)(gap / 1000),
+                            (uint32_t)(gap % 1000) * 1000u);
 }
 
 static int ms_left(const stage_link *l, double deadline_s)
@@ -266,12 +317,18 @@ static int ms_left(const stage_link *l, double deadline_s)
 
 enum { X_OK, X_LATE, X_BUSY, X_EXC, X_LINK };
 
+/* How the last attempt of an exchange failed. */
+typedef struct failure {
+    int en;        /* errno */
+    int to_ms;     /* its response timeout */
+    double took_s; /* from sending to the failure */
+} failure;
+
 /* One request on an open link, re-sent while the stage answers "busy"
  * (the stage did not act on it, so repeating is safe) and time remains.
- * Returns an X_* class; *en = errno of the failure, *to_ms = the response
- * timeout of the last attempt. */
+ * Returns an X_* class; *f says how the last attempt failed. */
 static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
-                    double deadline_s, int *en, int *to_ms)
+                    double deadline_s, failure *f)
 {
     double busy_wait_s = 0.01;
     int busy = 0;
@@ -280,7 +337,8 @@ static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
         if (ms < 1)
             return busy ? X_BUSY : X_LATE;
         set_timeouts(l, ms);
-        *to_ms = ms;
+        f->to_ms = ms;
+        double t0 = stage_now_s();
         int rc;
         if (!write)
             rc = modbus_read_registers(l->ctx, addr, n, buf);
@@ -290,8 +348,9 @@ static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
             rc = modbus_write_registers(l->ctx, addr, n, buf);
         if (rc >= 0)
             return X_OK;
-        *en = errno;
-        if (*en == EMBXSBUSY) {
+        f->en = errno;
+        f->took_s = stage_now_s() - t0;
+        if (f->en == EMBXSBUSY) {
             busy = 1;
             if (stage_now_s() + busy_wait_s >= deadline_s)
                 return X_BUSY;
@@ -299,7 +358,7 @@ static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
             busy_wait_s = fmin(2 * busy_wait_s, 0.1);
             continue;
         }
-        if (*en > MODBUS_ENOBASE && *en <= EMBXGTAR)
+        if (f->en > MODBUS_ENOBASE && f->en <= EMBXGTAR)
             return X_EXC;
         return X_LINK;
     }
@@ -323,18 +382,52 @@ static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
     return sl_seterr(e, code, "%s", l->last);
 }
 
-static const char *link_reason(int en, int to_ms, char *buf, size_t n)
+/* A serial reply that stopped short: the byte timeout ended it well
+ * before the response timeout would have (bytes had come). */
+static int cut_short(const stage_link *l, const failure *f)
 {
-    if (en == ETIMEDOUT)
-        snprintf(buf, n, "no reply within %d ms", to_ms);
+    return l->be->line_errors && f->en == ETIMEDOUT &&
+           l->byte_ms < f->to_ms && f->took_s * 1e3 + l->byte_ms / 2.0 < f->to_ms;
+}
+
+static int bad_reply(int en)
+{
+    return en == EMBBADDATA || en == EMBBADCRC || en == EMBMDATA ||
+           en == EMBBADEXC || en == EMBUNKEXC || en == EMBBADSLAVE;
+}
+
+/* A reply a serial line damaged: a byte corrupted (CRC), lost (cut
+ * short), or a frame that does not fit the request. */
+static int line_error(const stage_link *l, const failure *f)
+{
+    return l->be->line_errors && (bad_reply(f->en) || cut_short(l, f));
+}
+
+static const char *link_reason(const stage_link *l, const failure *f,
+                               char *buf, size_t n)
+{
+    int en = f->en;
+    if (cut_short(l, f))
+        snprintf(buf, n, "reply cut short (no byte for %d ms: a byte lost on "
+                 "the line?)", l->byte_ms);
+    else if (en == ETIMEDOUT)
+        snprintf(buf, n, "no reply within %d ms", f->to_ms);
     else if (en == ECONNRESET)
         snprintf(buf, n, "connection closed by the stage");
-    else if (en == EMBBADDATA || en == EMBBADCRC || en == EMBMDATA ||
-             en == EMBBADEXC || en == EMBUNKEXC || en == EMBBADSLAVE)
+    else if (bad_reply(en))
         snprintf(buf, n, "bad reply (%s)", modbus_strerror(en));
     else
         snprintf(buf, n, "%s", modbus_strerror(en));
     return buf;
+}
+
+/* The reason of a failed exchange, counting a damaged reply. */
+static const char *failed(stage_link *l, const failure *f, char *buf,
+                          size_t n)
+{
+    if (line_error(l, f))
+        l->rejected++;
+    return link_reason(l, f, buf, n);
 }
 
 /* Verify a fresh connection is a specklab stage and read its wheels. */
@@ -342,12 +435,12 @@ static int handshake(stage_link *l, double deadline_s, sl_err *e)
 {
     uint16_t id[3], wr[STAGE_REG_WHEEL_BASE(STAGE_NWHEELS - 1) +
                        STAGE_WHEEL_NREGS - STAGE_REG_WHEEL_BASE(0)];
-    int en = 0, to_ms = 0, nw = (int)(sizeof wr / sizeof wr[0]);
+    int nw = (int)(sizeof wr / sizeof wr[0]);
+    failure f = {0, 0, 0};
     char why[128];
-    int x = exchange(l, 0, STAGE_REG_MAGIC, 3, id, deadline_s, &en, &to_ms);
+    int x = exchange(l, 0, STAGE_REG_MAGIC, 3, id, deadline_s, &f);
     if (x == X_OK)
-        x = exchange(l, 0, STAGE_REG_WHEEL_BASE(0), nw, wr, deadline_s, &en,
-                     &to_ms);
+        x = exchange(l, 0, STAGE_REG_WHEEL_BASE(0), nw, wr, deadline_s, &f);
     switch (x) {
     case X_OK: break;
     case X_LATE: return go_down(l, e, SL_EIO, "connected, but the call's "
@@ -357,10 +450,10 @@ static int handshake(stage_link *l, double deadline_s, sl_err *e)
                                 "deadline");
     case X_EXC: return go_down(l, e, SL_EFORMAT, "identity registers refused "
                                "(%s): not a specklab stage?",
-                               modbus_strerror(en));
+                               modbus_strerror(f.en));
     default: return go_down(l, e, SL_EIO, "connected, then %s during the "
                             "identity check",
-                            link_reason(en, to_ms, why, sizeof why));
+                            failed(l, &f, why, sizeof why));
     }
     if (id[0] != STAGE_MAGIC)
         return go_down(l, e, SL_EFORMAT, "not a specklab stage: register 0 "
@@ -432,21 +525,22 @@ int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
     return SL_OK;
 }
 
-/* One request; *dropped is 1 when the link closed under it. */
+/* One request; *again is 1 when a read may be asked again: the link
+ * closed under it, or a serial line damaged its reply. */
 static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
-                   double deadline_s, int *exc, sl_err *e, int *dropped)
+                   double deadline_s, int *exc, sl_err *e, int *again)
 {
-    int en = 0, to_ms = 0;
-    char why[128];
+    failure f = {0, 0, 0};
+    char why[160];
     *exc = 0;
-    *dropped = 0;
+    *again = 0;
     l->outcome = STAGE_LINK_FAILED;
     drop_if_dead(l);
     int rc = stage_link_ensure(l, deadline_s, e);
     if (rc != SL_OK)
         return rc;
     double t0 = stage_now_s();
-    switch (exchange(l, write, addr, n, buf, deadline_s, &en, &to_ms)) {
+    switch (exchange(l, write, addr, n, buf, deadline_s, &f)) {
     case X_OK:
         l->outcome = STAGE_LINK_DONE;
         return SL_OK;
@@ -458,24 +552,24 @@ static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
         return sl_seterr(e, SL_EIO, "stage busy (exception 0x06) for %.1f s, "
                          "until the call's deadline", stage_now_s() - t0);
     case X_EXC:
-        *exc = en - MODBUS_ENOBASE;
+        *exc = f.en - MODBUS_ENOBASE;
         return sl_seterr(e, SL_EIO, "exception 0x%02X (%s)", *exc,
-                         modbus_strerror(en));
+                         modbus_strerror(f.en));
     default:
-        *dropped = en == ECONNRESET || en == EPIPE || en == ENOTCONN ||
-                   en == ECONNABORTED;
+        *again = f.en == ECONNRESET || f.en == EPIPE || f.en == ENOTCONN ||
+                 f.en == ECONNABORTED || line_error(l, &f);
         return go_down(l, e, SL_EIO, "%s (reconnecting)",
-                       link_reason(en, to_ms, why, sizeof why));
+                       failed(l, &f, why, sizeof why));
     }
 }
 
 int stage_link_read(stage_link *l, int addr, int n, uint16_t *dst,
                     double deadline_s, int *exc, sl_err *e)
 {
-    int dropped = 0, rc;
+    int again = 0, rc;
     for (int attempt = 0;; attempt++) {
-        rc = request(l, 0, addr, n, dst, deadline_s, exc, e, &dropped);
-        if (rc == SL_OK || !dropped || attempt == READ_RETRIES ||
+        rc = request(l, 0, addr, n, dst, deadline_s, exc, e, &again);
+        if (rc == SL_OK || !again || attempt == READ_RETRIES ||
             stage_now_s() >= deadline_s)
             return rc;
     }
@@ -488,6 +582,6 @@ int stage_link_write(stage_link *l, int addr, int n, const uint16_t *src,
     if (n < 1 || n > MODBUS_MAX_WRITE_REGISTERS)
         return sl_seterr(e, SL_EINVAL, "write of %d registers", n);
     memcpy(buf, src, (size_t)n * sizeof *buf);
-    int dropped;
-    return request(l, 1, addr, n, buf, deadline_s, exc, e, &dropped);
+    int again;
+    return request(l, 1, addr, n, buf, deadline_s, exc, e, &again);
 }

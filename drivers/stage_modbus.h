@@ -7,7 +7,8 @@
  * closes the connection and schedules the next attempt with exponential
  * backoff; a link the stage closed between requests is replaced before
  * the next one, and a read whose link drops mid-request is asked again
- * within its deadline.  Deadlines are absolute monotonic seconds
+ * within its deadline; on a serial line (rtu) so is a read whose reply
+ * was damaged (CRC, cut short).  Deadlines are absolute monotonic seconds
  * (stage_now_s()).
  * Messages written to e are the bare reason ("no reply within 500 ms
  * (reconnecting)"); stage.c prefixes the stage and the operation.
@@ -39,6 +40,9 @@ enum { STAGE_LINK_DONE, STAGE_LINK_BUSY, STAGE_LINK_LATE, STAGE_LINK_FAILED };
 int stage_link_outcome(const stage_link *l);
 /* Identity read at the last successful connection (zeros before one). */
 const stage_ident *stage_link_ident(const stage_link *l);
+/* Replies a serial line damaged (bad CRC, cut short, not fitting the
+ * request), each rejected and its link reset, since stage_link_new. */
+unsigned stage_link_rejected(const stage_link *l);
 
 /* Connect (and verify) if not connected, before deadline_s. */
 int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e);

@@ -30,7 +30,21 @@
  * stops it (x = 0 clears like RESET; ENCODER also clears HOMED); reads 0 */
 #define FAKE_REG_FAULT_SCREEN 107
 #define FAKE_REG_FAULT_MASK 108
-#define FAKE_REG_LAST 108
+/* The serial line (--rtu only; no effect on TCP, which has its own
+ * checksums).  Each counts down per frame it damages:
+ * rw: the next N ordinary replies each get one byte corrupted on the wire
+ * (the client's CRC check must reject them) */
+#define FAKE_REG_LINE_NOISE 109
+/* rw: the next N ordinary replies each lose one byte on the wire (a short
+ * frame: the client's byte timeout must end it) */
+#define FAKE_REG_LINE_DROP 110
+/* rw: the next N frames arriving on the wire each get one byte corrupted
+ * (the fake's CRC check rejects them: no reply) */
+#define FAKE_REG_LINE_NOISE_RX 111
+/* rw: the next N frames arriving on the wire each lose one byte (the fake
+ * waits out its byte timeout, rejects the frame: no reply) */
+#define FAKE_REG_LINE_DROP_RX 112
+#define FAKE_REG_LAST 112
 
 #define FAKE_NREGS 128 /* holding registers 0..127 are mapped */
 

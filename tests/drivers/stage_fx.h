@@ -36,6 +36,7 @@
 typedef struct fake {
     pid_t pid;
     int port;
+    char rtu[64]; /* with --rtu: the pty it serves Modbus RTU on, else "" */
 } fake;
 
 typedef struct fixture {
@@ -154,7 +155,7 @@ static inline void fake_stop(fake *f)
 static inline int fake_start(fake *f, int port, const char *const *extra,
                       char *why, size_t nwhy)
 {
-    char path[PATH_MAX], portarg[16], line[64];
+    char path[PATH_MAX], portarg[16], line[160];
     const char *argv[40] = {fake_path(path, sizeof path), "--port", portarg,
                             "--ready-fd", "3"};
     int n = 5;
@@ -180,6 +181,10 @@ static inline int fake_start(fake *f, int port, const char *const *extra,
         fake_stop(f);
         return -1;
     }
+    const char *rtu = strstr(line, " rtu=");
+    f->rtu[0] = '\0';
+    if (rtu)
+        sscanf(rtu + 5, "%63s", f->rtu);
     return 0;
 }
 

@@ -11,6 +11,8 @@
  *                     reconstruction and its binary measure
  *   /api/frame.png    the latest frame, ?stretch=linear|sqrt|log|asinh
  *   /api/powspec.png  the running mean power spectrum, log scale
+ *                     (both: ?hz=N, the rate the caller will poll at,
+ *                     0.2..30, default 2: the view keeps them that fresh)
  *   /api/recon.png    the last reconstruction's figure
  *   /api/events       WebSocket: the status JSON pushed at ?hz=N (0.2..30,
  *                     default 2); a text message {"hz": N} changes it

@@ -112,7 +112,8 @@ static void image(web *w, SoupServerMessage *msg, GHashTable *query, int kind)
         reply_text(msg, 400, "text/plain", "stretch: expected linear, sqrt, log or asinh\n");
         return;
     }
-    webview_demand(w->view, 1, stretch);
+    const char *hz = query ? g_hash_table_lookup(query, "hz") : NULL;
+    webview_demand(w->view, hz ? g_ascii_strtod(hz, NULL) : 2, stretch);   /* clamped there */
     if (try_image(w, msg, kind, stretch))
         return;
     webview_info vi;

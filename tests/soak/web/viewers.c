@@ -15,7 +15,9 @@
  * gaps (frames the camera sent that never arrived), and the acquisition
  * rate = (good frames - 1) / (last - first SYS_TS_NS).  PASS: the watched
  * run lost nothing (all frames stored, no damaged buffer, no gap) and its
- * rate is within 5 % of the mean of the unwatched runs.  The CPU time of
+ * rate is within 5 % of the mean of the unwatched runs; once the viewers
+ * are gone the daemon has the descriptors it had before them and at most
+ * 8 MB more resident memory.  The CPU time of
  * the daemon, the fake camera and the viewers per run and the viewers'
  * request counts are printed with it.
  *
@@ -193,6 +195,25 @@ static int run_once(bench *b, dc *c, int frames, facts *fa, char *why, size_t n)
     return 0;
 }
 
+/* The daemon's resident memory [kB] and open descriptors. */
+static void daemon_mem(pid_t pid, long *rss_kb, int *fds)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    FILE *f = fopen(path, "r");
+    *rss_kb = -1, *fds = 0;
+    while (f && fgets(line, sizeof line, f))
+        sscanf(line, "VmRSS: %ld", rss_kb);
+    if (f)
+        fclose(f);
+    snprintf(path, sizeof path, "/proc/%d/fd", (int)pid);
+    GDir *d = g_dir_open(path, 0, NULL);
+    while (d && g_dir_read_name(d))
+        (*fds)++;
+    if (d)
+        g_dir_close(d);
+}
+
 /* ---- the measurement -------------------------------------------------------------- */
 
 typedef struct plan {
@@ -230,8 +251,11 @@ static void measure(tc *t, bench *b, dc *c, const plan *pl)
     viewer v[MAX_VIEWERS];
     pthread_t th[MAX_VIEWERS];
     volatile int stop = 0;
+    long rss0, rss1;
+    int fds0, fds1;
     CHECK(run_once(b, c, pl->frames, &quiet[0], why, sizeof why) == 0, "%s", why);
     print_facts("no viewer", &quiet[0], pl->frames);
+    daemon_mem(b->daemon.pid, &rss0, &fds0);
     memset(v, 0, sizeof v);
     for (int i = 0; i < pl->nviewers; i++) {
         v[i].hz = pl->viewer_hz, v[i].stop = &stop;
@@ -256,6 +280,9 @@ static void measure(tc *t, bench *b, dc *c, const plan *pl)
            bytes / 1e6, upd, upd / dt);
     CHECK(run_once(b, c, pl->frames, &quiet[1], why, sizeof why) == 0, "%s", why);
     print_facts("no viewer again", &quiet[1], pl->frames);
+    daemon_mem(b->daemon.pid, &rss1, &fds1);
+    printf("soak-web: daemon before and after the viewers: RSS %ld -> %ld kB, %d -> %d open "
+           "descriptors\n", rss0, rss1, fds0, fds1);
     double base = (quiet[0].rate_hz + quiet[1].rate_hz) / 2, ratio = watched.rate_hz / base;
     printf("soak-web: watched rate / unwatched rate = %.2f / %.2f = %.4f (%+.2f %%)\n",
            watched.rate_hz, base, ratio, 100 * (ratio - 1));
@@ -265,6 +292,8 @@ static void measure(tc *t, bench *b, dc *c, const plan *pl)
           watched.damaged, watched.gaps);
     CHECK(fabs(ratio - 1) <= 0.05, "the watched rate is %.2f %% off", 100 * (ratio - 1));
     CHECK(fail == 0, "%ld viewer requests failed", fail);
+    CHECK(fds1 == fds0 && rss1 - rss0 < 8192, "after the viewers: %d descriptors (were %d), "
+          "RSS grew %ld kB", fds1, fds0, rss1 - rss0);
 }
 
 static void soak_web_run(tc *t)

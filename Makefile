@@ -344,7 +344,7 @@ FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
                   recon/base/seq.c recon/base/status.c
 FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
-FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c recon/base/status.c
+FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c drivers/stage_backend.c recon/base/status.c
 FUZZ_CONFIG_SRC := daemon/config.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
@@ -364,7 +364,7 @@ $(FUZZ_BUILD)/fuzz_mask: tests/fuzz/fuzz_mask.c $(FUZZ_MASK_SRC) recon/sim/mask.
 $(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/sim/scene.h tests/fuzz/fuzz_util.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_SCENE_SRC) -o $@ -lm
-$(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stage.h drivers/stage_modbus.h
+$(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stage.h drivers/stage_modbus.h drivers/stage_backend.h
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Irecon -Idrivers $(shell $(PKG) --cflags libmodbus) $< \
 	    $(FUZZ_STAGE_SRC) -o $@ $(shell $(PKG) --libs libmodbus) -lm

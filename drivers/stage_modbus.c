@@ -43,10 +43,8 @@
  */
 #include "stage_modbus.h"
 
-#include <arpa/inet.h>
 #include <errno.h>
 #include <math.h>
-#include <poll.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,26 +53,11 @@
 
 #include <modbus.h>
 
+#include "stage_backend.h"
+
 /* A read whose link dropped mid-request (or whose reply a serial line
  * damaged) is asked again this many times. */
 #define READ_RETRIES 2
-/* RTU: the longest silence inside a frame, at least (USB serial adapters
- * deliver in chunks up to 16 ms apart); 4 characters if that is longer. */
-#define RTU_GAP_MS 50
-
-/* A transport: how to make its libmodbus context and what to do after a
- * connection is up.  Everything else is protocol-generic. */
-typedef struct stage_backend {
-    const char *name;
-    modbus_t *(*create)(const stage_config *cfg, char *label, size_t n,
-                        sl_err *e);
-    void (*on_connect)(modbus_t *ctx);
-    /* Why an open connection can no longer carry a request; NULL: it can. */
-    const char *(*dead)(modbus_t *ctx);
-    /* A damaged reply is a line error (retried for reads), not a
-     * symptom of a connection gone wrong. */
-    int line_errors;
-} stage_backend;
 
 struct stage_link {
     const stage_backend *be;
@@ -89,6 +72,7 @@ struct stage_link {
     int backoff_ms;    /* delay scheduled after the next failure */
     char last[256];    /* why the link is down */
     stage_ident ident;
+    stage_port port;   /* rtu: the shared port's lock */
 };
 
 double stage_now_s(void)
@@ -107,100 +91,12 @@ void stage_sleep_s(double d)
         ;
 }
 
-static modbus_t *tcp_create(const stage_config *cfg, char *label, size_t n,
-                            sl_err *e)
-{
-    struct in_addr a;
-    if (!cfg->host || inet_pton(AF_INET, cfg->host, &a) != 1) {
-        sl_seterr(e, SL_EINVAL, "stage: tcp host '%s' is not an IPv4 address",
-                  cfg->host ? cfg->host : "(null)");
-        return NULL;
-    }
-    if (cfg->port < 1 || cfg->port > 65535) {
-        sl_seterr(e, SL_EINVAL, "stage: tcp port %d outside 1..65535",
-                  cfg->port);
-        return NULL;
-    }
-    snprintf(label, n, "%s:%d", cfg->host, cfg->port);
-    return modbus_new_tcp(cfg->host, cfg->port);
-}
-
-static void tcp_on_connect(modbus_t *ctx)
-{
-    (void)ctx; /* a fresh socket has nothing stale in it */
-}
-
-/* 1 when something waits on the descriptor (or it is unusable).  One
- * poll, no traffic. */
-static int pending_input(modbus_t *ctx)
-{
-    struct pollfd p = {modbus_get_socket(ctx), POLLIN, 0};
-    int n = poll(&p, 1, 0);
-    return p.fd < 0 || n != 0;
-}
-
-/* Between requests nothing may be waiting on the socket: the peer's FIN
- * (the stage restarted or closed it: readable, end of stream), an error or
- * hang-up, or bytes no request asked for (a late reply). */
-static const char *tcp_dead(modbus_t *ctx)
-{
-    return pending_input(ctx) ? "connection closed by the stage" : NULL;
-}
-
-static modbus_t *rtu_create(const stage_config *cfg, char *label, size_t n,
-                            sl_err *e)
-{
-    if (!cfg->device || !cfg->device[0]) {
-        sl_seterr(e, SL_EINVAL, "stage: rtu backend needs a serial device");
-        return NULL;
-    }
-    if (cfg->baud <= 0 || !cfg->parity || !strchr("NEO", cfg->parity) ||
-        cfg->data_bits < 5 || cfg->data_bits > 8 || cfg->stop_bits < 1 ||
-        cfg->stop_bits > 2) {
-        sl_seterr(e, SL_EINVAL, "stage %s: bad serial settings %d %d%c%d "
-                  "(baud > 0, 5..8 data bits, parity N/E/O, 1..2 stop bits)",
-                  cfg->device, cfg->baud, cfg->data_bits,
-                  cfg->parity ? cfg->parity : '?', cfg->stop_bits);
-        return NULL;
-    }
-    snprintf(label, n, "%s", cfg->device);
-    return modbus_new_rtu(cfg->device, cfg->baud, cfg->parity, cfg->data_bits,
-                          cfg->stop_bits);
-}
-
-static void rtu_on_connect(modbus_t *ctx)
-{
-    modbus_flush(ctx); /* drop bytes left on the line by an earlier exchange */
-}
-
-/* A serial line has no connection to lose, but bytes waiting between
- * requests (a reply that came after its timeout) put it out of step. */
-static const char *rtu_dead(modbus_t *ctx)
-{
-    return pending_input(ctx) ? "unasked-for bytes on the line between "
-                                "requests (a late reply?)" : NULL;
-}
-
-static const stage_backend backends[] = {
-    {"tcp", tcp_create, tcp_on_connect, tcp_dead, 0},
-    {"rtu", rtu_create, rtu_on_connect, rtu_dead, 1},
-};
-#define NBACKENDS ((int)(sizeof backends / sizeof backends[0]))
-
-const char *stage_backend_name(int i)
-{
-    return i >= 0 && i < NBACKENDS ? backends[i].name : NULL;
-}
-
 int stage_link_new(stage_link **out, const stage_config *cfg, sl_err *err)
 {
     const char *name = cfg->backend ? cfg->backend : "tcp";
-    const stage_backend *be = NULL;
+    const stage_backend *be = stage_backend_find(name);
     *out = NULL;
     sl_clearerr(err);
-    for (int i = 0; i < NBACKENDS; i++)
-        if (!strcmp(backends[i].name, name))
-            be = &backends[i];
     if (!be)
         return sl_seterr(err, SL_EINVAL,
                          "stage: unknown backend '%s' (known: tcp, rtu)", name);
@@ -217,13 +113,7 @@ int stage_link_new(stage_link **out, const stage_config *cfg, sl_err *err)
     l->response_ms = cfg->response_timeout_ms;
     l->backoff_min_ms = l->backoff_ms = cfg->backoff_min_ms;
     l->backoff_max_ms = cfg->backoff_max_ms;
-    l->byte_ms = l->response_ms;
-    if (be->line_errors && cfg->baud > 0) {
-        /* 11 bits a character at most (start, 8 data, parity, stop) */
-        int four_chars_ms = (int)ceil(4 * 11 * 1000.0 / cfg->baud);
-        int gap = four_chars_ms > RTU_GAP_MS ? four_chars_ms : RTU_GAP_MS;
-        l->byte_ms = gap < l->response_ms ? gap : l->response_ms;
-    }
+    l->byte_ms = stage_backend_byte_ms(be, cfg);
     snprintf(l->last, sizeof l->last, "never connected");
     l->ctx = be->create(cfg, l->label, sizeof l->label, err);
     if (!l->ctx) {
@@ -262,6 +152,30 @@ const char *stage_link_label(const stage_link *l)
     return l->label;
 }
 
+/* Close the connection (and so release the port's lock). */
+static void close_link(stage_link *l)
+{
+    modbus_close(l->ctx);
+    l->connected = 0;
+    l->port.locked = 0;
+}
+
+static int take(stage_link *l, double deadline_s, sl_err *e)
+{
+    if (!l->connected ||
+        stage_port_take(&l->port, l->be, modbus_get_socket(l->ctx),
+                        deadline_s) == 0)
+        return SL_OK;
+    l->outcome = STAGE_LINK_LATE;
+    return sl_seterr(e, SL_EIO, "the serial port was in use by another "
+                     "handle until the call's deadline");
+}
+
+static void give(stage_link *l)
+{
+    stage_port_give(&l->port, modbus_get_socket(l->ctx));
+}
+
 /* A link found dead between requests: closed at once, and the next
  * attempt not delayed (the link failed on the stage's side, not on a
  * request of ours). */
@@ -270,14 +184,19 @@ static void drop_if_dead(stage_link *l)
     const char *why = l->connected ? l->be->dead(l->ctx) : NULL;
     if (!why)
         return;
-    modbus_close(l->ctx);
-    l->connected = 0;
+    close_link(l);
     snprintf(l->last, sizeof l->last, "%s", why);
 }
 
 int stage_link_connected(stage_link *l)
 {
-    drop_if_dead(l);
+    /* A shared port is looked at only while no other handle talks on it
+     * (its reply in flight would pass for bytes nobody asked for). */
+    if (l->connected && stage_port_take(&l->port, l->be,
+                                        modbus_get_socket(l->ctx), 0) == 0) {
+        drop_if_dead(l);
+        give(l);
+    }
     return l->connected;
 }
 
@@ -374,8 +293,7 @@ static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
     va_start(ap, fmt);
     vsnprintf(l->last, sizeof l->last, fmt, ap);
     va_end(ap);
-    modbus_close(l->ctx);
-    l->connected = 0;
+    close_link(l);
     l->next_try_s = stage_now_s() + l->backoff_ms * 1e-3;
     l->backoff_ms = l->backoff_ms * 2 > l->backoff_max_ms ? l->backoff_max_ms
                                                            : l->backoff_ms * 2;
@@ -386,7 +304,7 @@ static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
  * before the response timeout would have (bytes had come). */
 static int cut_short(const stage_link *l, const failure *f)
 {
-    return l->be->line_errors && f->en == ETIMEDOUT &&
+    return l->be->serial && f->en == ETIMEDOUT &&
            l->byte_ms < f->to_ms && f->took_s * 1e3 + l->byte_ms / 2.0 < f->to_ms;
 }
 
@@ -400,7 +318,7 @@ static int bad_reply(int en)
  * short), or a frame that does not fit the request. */
 static int line_error(const stage_link *l, const failure *f)
 {
-    return l->be->line_errors && (bad_reply(f->en) || cut_short(l, f));
+    return l->be->serial && (bad_reply(f->en) || cut_short(l, f));
 }
 
 static const char *link_reason(const stage_link *l, const failure *f,
@@ -493,6 +411,11 @@ static int connect_once(stage_link *l, double deadline_s, sl_err *e)
                            "%d ms", ms);
         return go_down(l, e, SL_EIO, "cannot connect: %s", modbus_strerror(en));
     }
+    int fd = modbus_get_socket(l->ctx);
+    stage_port_opened(&l->port, l->be, fd);
+    if (stage_port_take(&l->port, l->be, fd, deadline_s) < 0)
+        return go_down(l, e, SL_EIO, "the serial port was in use by another "
+                       "handle until the call's deadline");
     l->be->on_connect(l->ctx);
     int rc = handshake(l, deadline_s, e);
     if (rc != SL_OK)
@@ -502,7 +425,8 @@ static int connect_once(stage_link *l, double deadline_s, sl_err *e)
     return SL_OK;
 }
 
-int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
+/* stage_link_ensure with the port's lock held (when connected). */
+static int ensure(stage_link *l, double deadline_s, sl_err *e)
 {
     int attempts = 0;
     while (!l->connected) {
@@ -525,18 +449,24 @@ int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
     return SL_OK;
 }
 
-/* One request; *again is 1 when a read may be asked again: the link
- * closed under it, or a serial line damaged its reply. */
-static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
-                   double deadline_s, int *exc, sl_err *e, int *again)
+int stage_link_ensure(stage_link *l, double deadline_s, sl_err *e)
+{
+    int rc = take(l, deadline_s, e);
+    if (rc == SL_OK)
+        rc = ensure(l, deadline_s, e);
+    give(l);
+    return rc;
+}
+
+/* request() with the port's lock held (when connected). */
+static int request_locked(stage_link *l, int write, int addr, int n,
+                          uint16_t *buf, double deadline_s, int *exc,
+                          sl_err *e, int *again)
 {
     failure f = {0, 0, 0};
     char why[160];
-    *exc = 0;
-    *again = 0;
-    l->outcome = STAGE_LINK_FAILED;
     drop_if_dead(l);
-    int rc = stage_link_ensure(l, deadline_s, e);
+    int rc = ensure(l, deadline_s, e);
     if (rc != SL_OK)
         return rc;
     double t0 = stage_now_s();
@@ -561,6 +491,22 @@ static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
         return go_down(l, e, SL_EIO, "%s (reconnecting)",
                        failed(l, &f, why, sizeof why));
     }
+}
+
+/* One request, the port's traffic to itself; *again is 1 when a read may
+ * be asked again: the link closed under it, or a serial line damaged its
+ * reply. */
+static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
+                   double deadline_s, int *exc, sl_err *e, int *again)
+{
+    *exc = 0;
+    *again = 0;
+    l->outcome = STAGE_LINK_FAILED;
+    int rc = take(l, deadline_s, e);
+    if (rc == SL_OK)
+        rc = request_locked(l, write, addr, n, buf, deadline_s, exc, e, again);
+    give(l);
+    return rc;
 }
 
 int stage_link_read(stage_link *l, int addr, int n, uint16_t *dst,

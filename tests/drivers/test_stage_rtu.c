@@ -12,7 +12,9 @@
  */
 #include "stage_fx.h"
 
+#include <pthread.h>
 #include <sys/stat.h>
+#include <termios.h>
 
 #define GAP_S 0.05 /* the driver's byte timeout at 19200 baud (RTU_GAP_MS) */
 
@@ -384,7 +386,91 @@ TEST(rtu_port_gone_and_back)
     CHECK(dt_back < CALL_MS * 1e-3 + MARGIN_S, "took %.3f s", dt_back);
 }
 
+/* Two handles on one port, as the daemon's runner and its device queries
+ * are, talking at once from two threads: the port's lock makes one
+ * master at a time, so no request meets another's reply. */
+typedef struct hammer {
+    stage *s;
+    int wheel, n, fails;
+    unsigned rejected;
+    char msg[SL_ERRMSG_MAX];
+} hammer;
+
+static void *hammer_run(void *arg)
+{
+    hammer *h = arg;
+    stage_wheel_status st;
+    for (int i = 0; i < h->n && !h->fails; i++) {
+        if (stage_status(h->s, h->wheel, &st) != SL_OK || st.wheel != h->wheel ||
+            st.slots != (h->wheel ? 4 : 6)) {
+            h->fails = i + 1;
+            snprintf(h->msg, sizeof h->msg, "%s", stage_errmsg(h->s));
+        }
+    }
+    h->rejected = stage_rejected_replies(h->s);
+    return NULL;
+}
+
+RTU_TEST(rtu_shared_port, "--slots-mask", "4", "--parity", "N",)
+{
+    stage *s1 = NULL, *s2 = NULL;
+    sl_err e = {0};
+    /* Parity N: a pty drops PARENB, and glibc's tcsetattr calls a setting
+     * that changes nothing an error (EINVAL), which a second handle's
+     * E or O would be.  A real port keeps its parity. */
+    fx->cfg.parity = 'N';
+    CHECK(stage_new(&s1, &fx->cfg, &e) == SL_OK, "%s", e.msg);
+    if (stage_new(&s2, &fx->cfg, &e) != SL_OK) {
+        stage_free(s1);
+        CHECK(0, "%s", e.msg);
+    }
+    hammer h[2] = {{s1, 0, 300, 0, 0, ""}, {s2, 1, 300, 0, 0, ""}};
+    pthread_t th;
+    double t0 = now_s();
+    int started = pthread_create(&th, NULL, hammer_run, &h[1]) == 0;
+    hammer_run(&h[0]);
+    if (started)
+        pthread_join(th, NULL);
+    double dt = now_s() - t0;
+    int connected = stage_connected(s1) && stage_connected(s2);
+    stage_free(s1);
+    stage_free(s2);
+    note("2 handles x 300 status reads on one port, concurrently", dt);
+    CHECK(started, "pthread_create");
+    for (int i = 0; i < 2; i++)
+        CHECK(h[i].fails == 0 && h[i].rejected == 0, "handle %d: read %d failed, "
+              "%u rejected: %s", i, h[i].fails, h[i].rejected, h[i].msg);
+    CHECK(connected, "a handle lost its connection");
+}
+
+/* Something else on the port changed its settings (libmodbus restores a
+ * port's earlier settings when it closes it; another program may set
+ * its own): the next call puts the handle's settings back first. */
+RTU_TEST(rtu_settings_restored, )
+{
+    stage *s = fx->s;
+    stage_wheel_status st;
+    struct termios tio;
+    CHECK(stage_status(s, 0, &st) == SL_OK, "%s", stage_errmsg(s));
+    int fd = open(fx->f.rtu, O_RDWR | O_NOCTTY);
+    CHECK(fd >= 0 && tcgetattr(fd, &tio) == 0, "%s: %s", fx->f.rtu, strerror(errno));
+    /* a terminal's cooked mode: line editing, echo, CR to NL */
+    tio.c_lflag |= ICANON | ECHO | ECHOE | ISIG;
+    tio.c_iflag |= ICRNL | IXON;
+    tio.c_oflag |= OPOST | ONLCR;
+    cfsetispeed(&tio, B9600);
+    cfsetospeed(&tio, B9600);
+    int set = tcsetattr(fd, TCSANOW, &tio) == 0;
+    close(fd);
+    CHECK(set, "tcsetattr: %s", strerror(errno));
+    for (int i = 0; i < 20; i++)
+        CHECK(stage_status(s, i & 1, &st) == SL_OK && st.slots == 6, "read %d "
+              "after the port was set cooked: %s", i, stage_errmsg(s));
+    CHECK(stage_rejected_replies(s) == 0, "%u rejected", stage_rejected_replies(s));
+}
+
 TC_MAIN(TC_CASE(rtu_move_status), TC_CASE(rtu_busy), TC_CASE(rtu_slow_reply),
         TC_CASE(rtu_stall), TC_CASE(rtu_noise), TC_CASE(rtu_drop),
         TC_CASE(rtu_request_damaged), TC_CASE(rtu_settings),
-        TC_CASE(rtu_port_gone_and_back))
+        TC_CASE(rtu_port_gone_and_back), TC_CASE(rtu_shared_port),
+        TC_CASE(rtu_settings_restored))

@@ -44,6 +44,7 @@ static const char defaults_text[] =
     "unit=1\n"
     "# device=/dev/ttyUSB0    (rtu)\n"
     "# baud=19200             (rtu)\n"
+    "# parity=E               (rtu: N, E or O)\n"
     "move_timeout_ms=15000\n"
     "settle_ms=250\n"
     "response_timeout_ms=500\n"
@@ -97,7 +98,7 @@ static const char *const known_keys[][16] = {
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
      "lost_timeout_s", "max_failed_frames", "gain_e_per_adu", "read_noise_e",
      "heartbeat_timeout_ms", NULL},
-    {"stage", "backend", "address", "unit", "device", "baud",
+    {"stage", "backend", "address", "unit", "device", "baud", "parity",
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
     {"paths", "data_dir", "catalog", NULL},
@@ -367,6 +368,41 @@ static int get_path(GKeyFile *kf, const char *g, const char *k, const char *dir,
     return rc;
 }
 
+/* [stage]; parity one of N, E, O (either case). */
+static int read_stage(config *c, GKeyFile *kf, sl_err *err)
+{
+    int rc;
+    char *s = NULL;
+    if ((rc = get_str(kf, "stage", "backend", "tcp", &c->stage_backend, err)) ||
+        (rc = get_str(kf, "stage", "device", "", &c->stage_device, err)))
+        return rc;
+    if (strcmp(c->stage_backend, "tcp") && strcmp(c->stage_backend, "rtu"))
+        return sl_seterr(err, SL_EINVAL, "config [stage] backend = '%s': expected tcp or rtu",
+                         c->stage_backend);
+    if ((rc = get_str(kf, "stage", "address", "127.0.0.1:1502", &s, err)) == SL_OK &&
+        !strcmp(c->stage_backend, "tcp"))
+        rc = split_address(s, &c->stage_host, &c->stage_port, err);
+    g_free(s);
+    if (rc || (rc = get_int(kf, "stage", "unit", 1, 0, 247, &c->stage_unit, err)) ||
+        (rc = get_int(kf, "stage", "baud", 19200, 300, 4000000, &c->stage_baud, err)) ||
+        (rc = get_int(kf, "stage", "move_timeout_ms", 15000, 100, 600000, &c->move_timeout_ms,
+                      err)) ||
+        (rc = get_int(kf, "stage", "settle_ms", 250, 0, 60000, &c->settle_ms, err)) ||
+        (rc = get_int(kf, "stage", "response_timeout_ms", 500, 10, 60000,
+                      &c->response_timeout_ms, err)) ||
+        (rc = get_int(kf, "stage", "call_timeout_ms", 2000, 10, 600000, &c->call_timeout_ms,
+                      err)))
+        return rc;
+    if ((rc = get_str(kf, "stage", "parity", "E", &s, err)) == SL_OK) {
+        c->stage_parity = (char)g_ascii_toupper(s[0]);
+        if (strlen(s) != 1 || !strchr("NEO", c->stage_parity))
+            rc = sl_seterr(err, SL_EINVAL, "config [stage] parity = '%s': expected N "
+                           "(none), E (even) or O (odd)", s);
+    }
+    g_free(s);
+    return rc;
+}
+
 static int read_values(config *c, GKeyFile *kf, sl_err *err)
 {
     int rc = SL_OK;
@@ -394,25 +430,7 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
         (rc = get_num(kf, "camera", "read_noise_e", NAN, 0, 1e4, &c->read_noise_e, err)))
         return rc;
     c->wavelength_m *= 1e-9;
-    if ((rc = get_str(kf, "stage", "backend", "tcp", &c->stage_backend, err)) ||
-        (rc = get_str(kf, "stage", "device", "", &c->stage_device, err)))
-        return rc;
-    if (strcmp(c->stage_backend, "tcp") && strcmp(c->stage_backend, "rtu"))
-        return sl_seterr(err, SL_EINVAL, "config [stage] backend = '%s': expected tcp or rtu",
-                         c->stage_backend);
-    if ((rc = get_str(kf, "stage", "address", "127.0.0.1:1502", &s, err)) == SL_OK &&
-        !strcmp(c->stage_backend, "tcp"))
-        rc = split_address(s, &c->stage_host, &c->stage_port, err);
-    g_free(s);
-    if (rc || (rc = get_int(kf, "stage", "unit", 1, 0, 247, &c->stage_unit, err)) ||
-        (rc = get_int(kf, "stage", "baud", 19200, 300, 4000000, &c->stage_baud, err)) ||
-        (rc = get_int(kf, "stage", "move_timeout_ms", 15000, 100, 600000, &c->move_timeout_ms,
-                      err)) ||
-        (rc = get_int(kf, "stage", "settle_ms", 250, 0, 60000, &c->settle_ms, err)) ||
-        (rc = get_int(kf, "stage", "response_timeout_ms", 500, 10, 60000,
-                      &c->response_timeout_ms, err)) ||
-        (rc = get_int(kf, "stage", "call_timeout_ms", 2000, 10, 600000, &c->call_timeout_ms,
-                      err)))
+    if ((rc = read_stage(c, kf, err)))
         return rc;
     if ((rc = get_slots(kf, "screens", 0, c->screens, &c->nscreens, err)) ||
         (rc = get_slots(kf, "masks", 1, c->masks, &c->nmasks, err)))

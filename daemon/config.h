@@ -8,8 +8,8 @@
  *             buffers plate_scale_arcsec wavelength_nm lost_timeout_s
  *             max_failed_frames gain_e_per_adu read_noise_e
  *             heartbeat_timeout_ms
- *   [stage]   backend address unit device baud move_timeout_ms settle_ms
- *             response_timeout_ms call_timeout_ms
+ *   [stage]   backend address unit device baud parity move_timeout_ms
+ *             settle_ms response_timeout_ms call_timeout_ms
  *   [screens] SLOT=NAME ...        (the phase-screen wheel)
  *   [masks]   SLOT=NAME[:FILE] ... (built-in "full"/"nrm17", or a mask file)
  *   [paths]   data_dir catalog
@@ -58,6 +58,7 @@ typedef struct config {
     /* [stage] */
     char *stage_backend, *stage_host, *stage_device;
     int stage_port, stage_unit, stage_baud;
+    char stage_parity;          /* rtu: 'N', 'E' (default) or 'O' */
     int move_timeout_ms, settle_ms, response_timeout_ms, call_timeout_ms;
     /* [screens], [masks], sorted by slot */
     config_slot screens[CONFIG_MAX_SLOTS];

@@ -127,6 +127,7 @@ static void devices_thread(GTask *task, gpointer src, gpointer data, GCancellabl
     sc.port = cfg->stage_port;
     sc.device = cfg->stage_device;
     sc.baud = cfg->stage_baud;
+    sc.parity = cfg->stage_parity;
     sc.unit_id = cfg->stage_unit;
     sc.response_timeout_ms = cfg->response_timeout_ms;
     sc.call_timeout_ms = cfg->call_timeout_ms;

@@ -116,6 +116,7 @@ static int stage_ready(runner *r, sl_err *e)
     sc.port = c->stage_port;
     sc.device = c->stage_device;
     sc.baud = c->stage_baud;
+    sc.parity = c->stage_parity;
     sc.unit_id = c->stage_unit;
     sc.response_timeout_ms = c->response_timeout_ms;
     sc.call_timeout_ms = c->call_timeout_ms;

@@ -34,6 +34,9 @@ LDFLAGS_ALL := $(SAN)
 
 recon_cflags = $(shell $(PKG) --cflags $(RECON_PKGS) 2>/dev/null)
 recon_libs   = $(shell $(PKG) --libs $(RECON_PKGS) 2>/dev/null) -lm
+# specklabd makes FFTW's planner thread-safe (the worker and the web view
+# both plan); FFTW's thread libraries have no pkg-config file.
+FFTW_THREADS_LIBS := -lfftw3_threads -lfftw3f_threads
 cli_cflags   = $(shell $(PKG) --cflags $(CLI_PKGS) 2>/dev/null)
 cli_libs     = $(shell $(PKG) --libs $(CLI_PKGS) 2>/dev/null)
 drv_cflags   = $(shell $(PKG) --cflags $(DRV_PKGS) 2>/dev/null)
@@ -225,7 +228,7 @@ $(BUILD)/daemon/web_res.o: $(BUILD)/daemon/web_res.c
 $(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
-	    $(recon_libs) $(daemon_libs) $(fig_libs) -lm
+	    $(recon_libs) $(FFTW_THREADS_LIBS) $(daemon_libs) $(fig_libs) -lm
 
 $(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
@@ -393,7 +396,7 @@ FUZZ_HTTP_SRC := daemon/web.c daemon/webpeek.c daemon/webroute.c daemon/webws.c 
                  daemon/webstate.c daemon/webhist.c daemon/webview.c daemon/webtap.c \
                  daemon/webfft.c daemon/webpng.c daemon/webconf.c daemon/config.c daemon/proto.c \
                  recon/pipeline/pipeline_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
-FUZZ_HTTP_PKGS := glib-2.0 gio-2.0 json-glib-1.0 sqlite3 libmodbus libsoup-3.0 libpng
+FUZZ_HTTP_PKGS := glib-2.0 gio-2.0 json-glib-1.0 sqlite3 libmodbus libsoup-3.0 libpng fftw3
 $(FUZZ_BUILD)/daemon/web_res.o: $(WEB_RES) daemon/webpage.html
 	@mkdir -p $(dir $@)
 	glib-compile-resources --generate-source --c-name web_res \

@@ -32,6 +32,7 @@
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
+#include <fftw3.h>
 #include <glib-unix.h>
 #include <glib.h>
 #include <math.h>
@@ -369,6 +370,11 @@ int main(int argc, char **argv)
     daemon_ctx d = {0};
     reserve *rs = NULL;
     web *wb = NULL;
+    /* The worker and the web view both plan FFTs: FFTW's planner (and its
+     * wisdom) is process-global, so it is made thread-safe before any
+     * thread exists (cost: a lock around each plan, none on execution). */
+    fftw_make_planner_thread_safe();
+    fftwf_make_planner_thread_safe();
     if ((status = parse_opts(argc, argv, &o)) != 0)
         goto free_opts;
     status = 1;

@@ -1,16 +1,13 @@
-/* webfft.h - the web view's running mean power spectrum of frames.
+/* webfft.h - the web view's running mean power spectrum of frames, on
+ * FFTW (double precision: the display spans ten decades of power).
  *
- * Why not FFTW, which recon/ uses: FFTW's planner and its wisdom are
- * process-global and not thread-safe, and the daemon's one planner is the
- * worker thread (worker.c imports and exports DATA_DIR/fftw-wisdom there,
- * unlocked).  Planning from the web view's thread could corrupt that
- * state mid-reconstruction.  So the view has its own small transform:
- * radix-2 for power-of-two lengths, Bluestein's chirp-z (through a
- * power-of-two transform) for any other, in double precision.  Its "plan"
- * (twiddles, bit reversal, the chirp and its transform) is made once per
- * frame size, when the accumulator is made.  A 128x128 frame costs about
- * 1 ms, 1024x1024 about 60 ms; the view computes at the viewers' rate at
- * most, at low priority.
+ * FFTW's planner is process-global and the worker thread plans too (and
+ * imports and exports DATA_DIR/fftw-wisdom): specklabd makes the planner
+ * thread-safe at start-up (fftw_make_planner_thread_safe, main.c) before
+ * any thread exists, so the view may plan from its own thread.  The plan
+ * (FFTW_ESTIMATE: no timing, so no stall the first time a size is seen)
+ * is made once per frame size, when the accumulator is made; webps_add
+ * executes it without allocating.  A 128x128 frame costs ~0.1 ms.
  */
 #ifndef SL_DAEMON_WEBFFT_H
 #define SL_DAEMON_WEBFFT_H
@@ -32,12 +29,5 @@ long webps_count(const webps *p);
 /* log10 of the mean power, zero frequency moved to (w/2, h/2) (the image
  * centre's convention) into out (w*h floats).  0 when nothing added. */
 int webps_log_mean(const webps *p, float *out);
-
-/* The 1-D transform, exposed for its test: forward DFT of n complex
- * values (re, im interleaved) in place, X_k = sum x_j e^(-2 pi i jk/n). */
-typedef struct webfft webfft;
-webfft *webfft_new(int n);
-void webfft_free(webfft *f);
-void webfft_forward(webfft *f, double *re_im);
 
 #endif

@@ -22,9 +22,13 @@
  * reopens and flushes it, a line holding bytes nobody asked for between
  * calls is reset, and a reply the line damaged (bad CRC, a byte lost: the
  * frame stops short, found after a silence of 50 ms or 4 characters, not
- * the response timeout) resets it as a bad reply does; a read is then
- * asked again within the call's bound (stage_rejected_replies counts
- * them).  A request the line damaged is not answered: a timeout.
+ * the response timeout) resets it as a bad reply does, and the request is
+ * sent again within the call's bound - a command too: it arrived whole
+ * (else no reply), and each command of the map leaves the stage in the
+ * same state when repeated (stage_rejected_replies counts them).  A
+ * request the line damaged is not answered: a timeout.  Each call holds
+ * the port's lock (flock), so several handles, in one process or more,
+ * share a serial line one request at a time.
  *
  * Connecting is lazy: stage_new only builds the handle (so an RTU handle
  * can be made without its serial port, and a daemon can start before the
@@ -98,8 +102,8 @@ const char *stage_errmsg(const stage *s);
 const char *stage_label(const stage *s);
 /* Replies damaged on a serial line (rtu: a CRC that does not match, a
  * frame cut short, one that does not fit its request) since stage_new:
- * each was rejected, the line reset, and a read asked again (a command
- * reported).  0 on tcp. */
+ * each was rejected, the line reset and the request sent again.  0 on
+ * tcp. */
 unsigned stage_rejected_replies(const stage *s);
 /* 1 while a verified connection is open and the stage has not closed it
  * (a restarted stage closes it; checked on the socket, no request sent,

@@ -9,6 +9,8 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/file.h>
+#include <fcntl.h>
+#include <unistd.h>
 
 #include "stage_modbus.h"
 
@@ -178,4 +180,19 @@ void stage_port_give(stage_port *p, int fd)
     if (fd >= 0)
         flock(fd, LOCK_UN);
     p->locked = 0;
+}
+
+int stage_port_nudge(const char *device)
+{
+    struct termios t;
+    int fd = open(device, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return -1;
+    int rc = -1;
+    if (tcgetattr(fd, &t) == 0) {
+        t.c_iflag ^= IXANY;
+        rc = tcsetattr(fd, TCSANOW, &t);
+    }
+    close(fd);
+    return rc;
 }

@@ -68,5 +68,12 @@ int stage_port_take(stage_port *p, const stage_backend *be, int fd,
                     double deadline_s);
 /* Release the lock (closing the descriptor releases it too). */
 void stage_port_give(stage_port *p, int fd);
+/* For a connection refused with EINVAL: Linux ptys have no parity bit and
+ * (Debian's) glibc calls a tcsetattr that changed nothing but a dropped
+ * PARENB an error, which every open after the first of a pty set to E or
+ * O gets.  Toggle IXANY (no effect without IXON, which libmodbus clears)
+ * on device so that libmodbus's next setting changes something.  0 when
+ * toggled. */
+int stage_port_nudge(const char *device);
 
 #endif

@@ -36,10 +36,16 @@
  * damaged on the line - a byte corrupted (its CRC does not match) or lost
  * (the frame stops short: the byte timeout, RTU_GAP_MS or 4 characters,
  * ends it well before the response timeout) - is a line error: the link
- * is reset as after any bad reply, and a read is asked again within its
- * deadline (READ_RETRIES times), a write is reported.  A request damaged
- * on its way to the stage is not answered (the stage checks the CRC):
- * that is a timeout, as on TCP.
+ * is reset as after any bad reply, and the request is sent again within
+ * its deadline (READ_RETRIES times), a write too: a reply means the
+ * request arrived whole (the stage checks its CRC and answers nothing
+ * else), so the stage acted on it or refused it, and every write of this
+ * driver leaves the stage as it was after the first when repeated (the
+ * same TARGET; HOME, MOVE to the same target, STOP, RESET:
+ * stage_map.h), while a refusal is refused again, this time legibly.  A
+ * request damaged on its way to the stage is not answered: a timeout, as
+ * on TCP.  Each call holds the port's lock (stage_backend.h): a serial
+ * line has one master at a time.
  */
 #include "stage_modbus.h"
 
@@ -55,9 +61,11 @@
 
 #include "stage_backend.h"
 
-/* A read whose link dropped mid-request (or whose reply a serial line
- * damaged) is asked again this many times. */
+/* A read whose link dropped mid-request, or a request whose reply a
+ * serial line damaged, is asked again this many times. */
 #define READ_RETRIES 2
+
+enum { AGAIN_NO, AGAIN_DROPPED, AGAIN_DAMAGED }; /* request()'s *again */
 
 struct stage_link {
     const stage_backend *be;
@@ -403,7 +411,11 @@ static int connect_once(stage_link *l, double deadline_s, sl_err *e)
         return SL_EIO; /* the caller reports l->last */
     /* libmodbus bounds the TCP connect by the response timeout. */
     set_timeouts(l, ms);
-    if (modbus_connect(l->ctx) < 0) {
+    int rc = modbus_connect(l->ctx);
+    if (rc < 0 && errno == EINVAL && l->be->serial &&
+        stage_port_nudge(l->label) == 0) /* a pty set before (see there) */
+        rc = modbus_connect(l->ctx);
+    if (rc < 0) {
         int en = errno;
         /* libmodbus leaves EINPROGRESS when its connect wait ran out */
         if (en == EINPROGRESS || en == ETIMEDOUT)
@@ -417,7 +429,7 @@ static int connect_once(stage_link *l, double deadline_s, sl_err *e)
         return go_down(l, e, SL_EIO, "the serial port was in use by another "
                        "handle until the call's deadline");
     l->be->on_connect(l->ctx);
-    int rc = handshake(l, deadline_s, e);
+    rc = handshake(l, deadline_s, e);
     if (rc != SL_OK)
         return rc;
     l->connected = 1;
@@ -486,21 +498,24 @@ static int request_locked(stage_link *l, int write, int addr, int n,
         return sl_seterr(e, SL_EIO, "exception 0x%02X (%s)", *exc,
                          modbus_strerror(f.en));
     default:
-        *again = f.en == ECONNRESET || f.en == EPIPE || f.en == ENOTCONN ||
-                 f.en == ECONNABORTED || line_error(l, &f);
+        if (line_error(l, &f))
+            *again = AGAIN_DAMAGED;
+        else if (f.en == ECONNRESET || f.en == EPIPE || f.en == ENOTCONN ||
+                 f.en == ECONNABORTED)
+            *again = AGAIN_DROPPED;
         return go_down(l, e, SL_EIO, "%s (reconnecting)",
                        failed(l, &f, why, sizeof why));
     }
 }
 
-/* One request, the port's traffic to itself; *again is 1 when a read may
- * be asked again: the link closed under it, or a serial line damaged its
- * reply. */
+/* One request, the port's traffic to itself; *again says why it may be
+ * asked again (AGAIN_*): the link closed under it (a read), or a serial
+ * line damaged its reply (any request). */
 static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
                    double deadline_s, int *exc, sl_err *e, int *again)
 {
     *exc = 0;
-    *again = 0;
+    *again = AGAIN_NO;
     l->outcome = STAGE_LINK_FAILED;
     int rc = take(l, deadline_s, e);
     if (rc == SL_OK)
@@ -512,10 +527,10 @@ static int request(stage_link *l, int write, int addr, int n, uint16_t *buf,
 int stage_link_read(stage_link *l, int addr, int n, uint16_t *dst,
                     double deadline_s, int *exc, sl_err *e)
 {
-    int again = 0, rc;
+    int again = AGAIN_NO, rc;
     for (int attempt = 0;; attempt++) {
         rc = request(l, 0, addr, n, dst, deadline_s, exc, e, &again);
-        if (rc == SL_OK || !again || attempt == READ_RETRIES ||
+        if (rc == SL_OK || again == AGAIN_NO || attempt == READ_RETRIES ||
             stage_now_s() >= deadline_s)
             return rc;
     }
@@ -528,6 +543,11 @@ int stage_link_write(stage_link *l, int addr, int n, const uint16_t *src,
     if (n < 1 || n > MODBUS_MAX_WRITE_REGISTERS)
         return sl_seterr(e, SL_EINVAL, "write of %d registers", n);
     memcpy(buf, src, (size_t)n * sizeof *buf);
-    int again;
-    return request(l, 1, addr, n, buf, deadline_s, exc, e, &again);
+    int again = AGAIN_NO, rc;
+    for (int attempt = 0;; attempt++) {
+        rc = request(l, 1, addr, n, buf, deadline_s, exc, e, &again);
+        if (rc == SL_OK || again != AGAIN_DAMAGED || attempt == READ_RETRIES ||
+            stage_now_s() >= deadline_s)
+            return rc;
+    }
 }

@@ -7,8 +7,8 @@
  * closes the connection and schedules the next attempt with exponential
  * backoff; a link the stage closed between requests is replaced before
  * the next one, and a read whose link drops mid-request is asked again
- * within its deadline; on a serial line (rtu) so is a read whose reply
- * was damaged (CRC, cut short).  Deadlines are absolute monotonic seconds
+ * within its deadline; on a serial line (rtu) so is any request whose
+ * reply was damaged (CRC, cut short).  Deadlines are absolute monotonic seconds
  * (stage_now_s()).
  * Messages written to e are the bare reason ("no reply within 500 ms
  * (reconnecting)"); stage.c prefixes the stage and the operation.

@@ -74,6 +74,7 @@ struct stage_link {
     int response_ms, backoff_min_ms, backoff_max_ms;
     int byte_ms;       /* longest silence inside a reply */
     unsigned rejected; /* damaged replies (CRC, cut short, mismatched) */
+    int damaged;       /* the failure go_down handles is one of those */
     int connected;
     int outcome;       /* STAGE_LINK_*: how the last request ended */
     double next_try_s; /* no connection attempt before this */
@@ -292,7 +293,8 @@ static int exchange(stage_link *l, int write, int addr, int n, uint16_t *buf,
 }
 
 /* Close the link, remember why (printf-style), schedule the next attempt
- * one backoff step later and double the step.  Returns code. */
+ * one backoff step later and double the step (after a reply the line
+ * damaged: the shortest step, not doubled).  Returns code. */
 static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
 static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
@@ -302,6 +304,12 @@ static int go_down(stage_link *l, sl_err *e, int code, const char *fmt, ...)
     vsnprintf(l->last, sizeof l->last, fmt, ap);
     va_end(ap);
     close_link(l);
+    if (l->damaged) {
+        /* the stage answered, the line garbled it: no reason to wait long */
+        l->damaged = 0;
+        l->next_try_s = stage_now_s() + l->backoff_min_ms * 1e-3;
+        return sl_seterr(e, code, "%s", l->last);
+    }
     l->next_try_s = stage_now_s() + l->backoff_ms * 1e-3;
     l->backoff_ms = l->backoff_ms * 2 > l->backoff_max_ms ? l->backoff_max_ms
                                                            : l->backoff_ms * 2;
@@ -351,8 +359,10 @@ static const char *link_reason(const stage_link *l, const failure *f,
 static const char *failed(stage_link *l, const failure *f, char *buf,
                           size_t n)
 {
-    if (line_error(l, f))
+    if (line_error(l, f)) {
         l->rejected++;
+        l->damaged = 1;
+    }
     return link_reason(l, f, buf, n);
 }
 
@@ -441,6 +451,9 @@ static int connect_once(stage_link *l, double deadline_s, sl_err *e)
 static int ensure(stage_link *l, double deadline_s, sl_err *e)
 {
     int attempts = 0;
+    /* A serial attempt too short to see a frame's gap could only end in
+     * "no reply", hiding why the earlier ones failed: not made. */
+    double least_s = l->be->serial ? 2 * l->byte_ms * 1e-3 : 0;
     while (!l->connected) {
         double now = stage_now_s();
         if (l->next_try_s >= deadline_s)
@@ -448,6 +461,10 @@ static int ensure(stage_link *l, double deadline_s, sl_err *e)
                              "this call; next in %.0f ms, past its deadline)",
                              l->last, attempts, attempts == 1 ? "" : "s",
                              (l->next_try_s - now) * 1e3);
+        if (attempts && l->next_try_s + least_s >= deadline_s)
+            return sl_seterr(e, SL_EIO, "not connected: %s (%d attempts in "
+                             "this call; too little time left for another)",
+                             l->last, attempts);
         stage_sleep_s(l->next_try_s - now);
         attempts++;
         int rc = connect_once(l, deadline_s, e);

@@ -232,6 +232,38 @@ RTU_TEST(rtu_noise, "--step-ms", "20",)
     CHECK(stage_wait(s, 0, 0) == SL_OK, "after the noise: %s", stage_errmsg(s));
 }
 
+/* A burst of damaged replies (4 corrupted, then 4 cut short) under the
+ * daemon's default timing (backoff 50..1000 ms, 2 s calls): the stage
+ * answers, so the line is reset at the shortest backoff each time, not
+ * an escalating one, and a status read gets through within its call. */
+RTU_TEST(rtu_noise_burst, )
+{
+    stage_config cfg;
+    stage *s = NULL;
+    sl_err e = {0};
+    stage_wheel_status st;
+    stage_config_defaults(&cfg);
+    cfg.backend = "rtu";
+    cfg.device = fx->f.rtu;
+    CHECK(stage_new(&s, &cfg, &e) == SL_OK, "%s", e.msg);
+    int rc = stage_status(s, 0, &st);
+    if (rc == SL_OK && (ctl(fx->f.port, FAKE_REG_LINE_NOISE, 4) < 0 ||
+                        ctl(fx->f.port, FAKE_REG_LINE_DROP, 4) < 0))
+        rc = -100;
+    double t0 = now_s();
+    if (rc == SL_OK)
+        rc = stage_status(s, 1, &st);
+    double dt = now_s() - t0;
+    unsigned rej = stage_rejected_replies(s);
+    char msg[SL_ERRMSG_MAX];
+    snprintf(msg, sizeof msg, "%s", stage_errmsg(s));
+    stage_free(s);
+    note("status through 8 damaged replies in a row (default timing)", dt);
+    CHECK(rc == SL_OK && st.wheel == 1 && st.slots == 6, "rc %d: %s", rc, msg);
+    CHECK(rej == 8, "%u rejected", rej);
+    CHECK(dt < cfg.call_timeout_ms * 1e-3, "took %.3f s", dt);
+}
+
 /* A reply with a byte lost: the frame stops short and the byte timeout
  * (GAP_S), not the response timeout, ends it. */
 RTU_TEST(rtu_drop, )
@@ -612,7 +644,8 @@ TEST(rtu_daemon_config)
 }
 
 TC_MAIN(TC_CASE(rtu_move_status), TC_CASE(rtu_busy), TC_CASE(rtu_slow_reply),
-        TC_CASE(rtu_stall), TC_CASE(rtu_noise), TC_CASE(rtu_drop),
+        TC_CASE(rtu_stall), TC_CASE(rtu_noise), TC_CASE(rtu_noise_burst),
+        TC_CASE(rtu_drop),
         TC_CASE(rtu_request_damaged), TC_CASE(rtu_settings),
         TC_CASE(rtu_port_gone_and_back), TC_CASE(rtu_shared_port),
         TC_CASE(rtu_settings_restored), TC_CASE(rtu_daemon_config))

@@ -111,6 +111,13 @@
  *   107 FAULT_SCREEN      w   write code: FAULT=code + STATUS_FAULT on wheel
  *   108 FAULT_MASK        w   0 / 1, motion stops (ENCODER clears HOMED;
  *                             0 clears); reads 0
+ *   the serial line (specklab-fake-stage --rtu; no effect on TCP), each
+ *   counting down per frame it damages:
+ *   109 LINE_NOISE        rw  the next N replies get one byte corrupted
+ *   110 LINE_DROP         rw  the next N replies lose one byte
+ *   111 LINE_NOISE_RX     rw  the next N requests get one byte corrupted
+ *   112 LINE_DROP_RX      rw  the next N requests lose one byte
+ *   On the line, DISCONNECT(_AFTER) leaves the request unanswered.
  * "Requests" above are those touching any register below 100: requests
  * addressed only to 100..127 ignore the switches, so a test can always
  * switch a fault off again over Modbus.

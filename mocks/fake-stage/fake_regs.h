@@ -22,9 +22,11 @@
 /* rw: delay every ordinary reply by this many ms (0 = off) */
 #define FAKE_REG_SLOW_MS 104
 /* rw: N > 0 counts down per ordinary request; the request that brings it
- * to 0 is not answered and its connection is closed (1 = the next one) */
+ * to 0 is not answered and its connection is closed (1 = the next one;
+ * on the serial line, which has no connection, it is only not answered) */
 #define FAKE_REG_DISCONNECT_AFTER 105
-/* rw: nonzero = close a connection at its first ordinary request */
+/* rw: nonzero = close a connection at its first ordinary request (on the
+ * serial line: answer no ordinary request) */
 #define FAKE_REG_DISCONNECT 106
 /* w: writing code x sets FAULT=x and STATUS_FAULT on wheel 0 / wheel 1 and
  * stops it (x = 0 clears like RESET; ENCODER also clears HOMED); reads 0 */

@@ -62,6 +62,10 @@ typedef struct bench {
                                    * companion laser off, a point source) */
     fx_proc stage, cam, daemon;
     int port;
+    int stage_rtu;                /* 1: the daemon reaches the stage by Modbus RTU
+                                   * on the fake's pty (stage_tty); its TCP port
+                                   * still serves the camera and fault switches */
+    char stage_tty[96];
     void (*daemon_pre)(void *);   /* e.g. limits, before exec */
     void *daemon_pre_arg;
     GPtrArray *keep;              /* JsonNode*, released by bench_down */
@@ -99,9 +103,11 @@ static inline int bench_init(bench *b)
 /* extra: further fake-stage flags, NULL-terminated. */
 static inline int bench_start_stage(bench *b, const char *const *extra)
 {
-    char bin[PATH_MAX], line[128];
+    char bin[PATH_MAX], line[192];
     char *argv[24] = {bin, "--port", "0", "--step-ms", "20"};
     int n = 5;
+    if (b->stage_rtu)
+        argv[n++] = "--rtu";
     for (int i = 0; extra && extra[i] && n < 22; i++)
         argv[n++] = (char *)extra[i];
     argv[n] = NULL;
@@ -109,6 +115,8 @@ static inline int bench_start_stage(bench *b, const char *const *extra)
     if (fx_spawn(&b->stage, argv, NULL, NULL, NULL) != 0 ||
         fx_wait_ready(&b->stage, line, sizeof line, 10) != 0 ||
         sscanf(line, "READY port=%d", &b->port) != 1)
+        return -1;
+    if (b->stage_rtu && sscanf(line, "READY port=%*d rtu=%95s", b->stage_tty) != 1)
         return -1;
     return 0;
 }
@@ -143,10 +151,15 @@ static inline int bench_write_config(bench *b, const char *extra)
     FILE *f = fopen(b->conf, "w");
     if (!f)
         return -1;
+    char stage[160];
+    if (b->stage_rtu)
+        snprintf(stage, sizeof stage, "backend=rtu\ndevice=%s\nbaud=19200\n", b->stage_tty);
+    else
+        snprintf(stage, sizeof stage, "address=127.0.0.1:%d\n", b->port);
     fprintf(f, "[camera]\nframe_rate_hz=100\nlost_timeout_s=2\n"
-               "[stage]\naddress=127.0.0.1:%d\nsettle_ms=100\nmove_timeout_ms=5000\n"
+               "[stage]\n%ssettle_ms=100\nmove_timeout_ms=5000\n"
                "[paths]\ndata_dir=%s\n[daemon]\nsocket=%s\n%s\n",
-            b->port, b->data, b->sock, extra ? extra : "");
+            stage, b->data, b->sock, extra ? extra : "");
     return fclose(f) == 0 ? 0 : -1;
 }
 

@@ -265,8 +265,13 @@ BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
     CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
                    "\"kind\": \"calibrator\"}", cal) == 0, "calibrator run");
     CHECK(camera_with_dm(b, c, "") == 0, "the camera with the companion on");
-    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60}", sci) == 0,
-          "science run");
+    /* its automatic reconstruction after acquisition takes the calibrator */
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
+                   "\"reconstruct\": \"direct\"}", sci) == 0, "science run");
+    JsonNode *auto_rec = run_info(b, c, sci);
+    CHECK(auto_rec && has(js(auto_rec, "reconstructions.0.params.ref.run"), cal),
+          "the automatic reconstruction's params: %s",
+          jtext(jget(auto_rec, "reconstructions.0.params")));
     CHECK(run_done(b, c, "{\"screen\": 2, \"mask\": 1, \"frames\": 30}", other) == 0,
           "a run through screen 2");
     char args[200];

@@ -216,6 +216,8 @@ static void print_status(const char *path, JsonObject *st, JsonObject *dev)
            q ? json_array_get_length(q) : 0);
     printf("  catalogue:   %s\n  data:        %s\n", or_dash(dcmd_str(st, "catalog")),
            or_dash(dcmd_str(st, "data_dir")));
+    if (dcmd_str(st, "web"))
+        printf("  live page:   %s\n", dcmd_str(st, "web"));
     if (!dev)
         return;
     JsonObject *cam = dcmd_obj(dev, "camera"), *stg = dcmd_obj(dev, "stage");

@@ -413,6 +413,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "specklabd: %s\n", e.msg);
         goto stop;
     }
+    if (wb)   /* for status */
+        snprintf(d.web_url, sizeof d.web_url, "%s", web_url(wb));
     g_unix_signal_add(SIGTERM, on_signal, loop);
     g_unix_signal_add(SIGINT, on_signal, loop);
     announce(&cfg, wb, &ready_fd);

@@ -70,6 +70,7 @@ char *cmd_status(request *rq)
     json_builder_begin_object(b);
     proto_add_str(b, "version", SPECKLABD_VERSION);
     proto_add_dbl(b, "uptime_s", (g_get_monotonic_time() - d->started_us) * 1e-6);
+    proto_add_str(b, "web", d->web_url[0] ? d->web_url : NULL);   /* null: no page */
     proto_add_str(b, "state", rs.current[0] || rs.queue[0] ? "running" : "idle");
     proto_add_str(b, "current_run", rs.current[0] ? rs.current : NULL);
     if (rs.current[0]) {

@@ -337,6 +337,11 @@ BENCH_TEST(live_page, 90, NULL, "[web]\nlisten=127.0.0.1:8080\n")
     r = keep(b, dc_call(c, "status", NULL, 5));
     CHECK(jok(r) && has(js(r, "result.current_state"), "acquiring"), "status after the abuse: %s",
           jtext(r));
+    /* the control socket's status names the page (specklab daemon status) */
+    char want[64];
+    snprintf(want, sizeof want, "http://127.0.0.1:%d/", WEB_PORT);
+    CHECK(!g_strcmp0(js(r, "result.web"), want), "status web %s, want %s", js(r, "result.web"),
+          want);
     char args[80];
     snprintf(args, sizeof args, "{\"run\": \"%s\"}", uuid);
     r = keep(b, dc_call(c, "abort-run", args, 15));

@@ -38,6 +38,7 @@
 
 typedef struct srun {
     char uuid[40], screen[32], mask[32], state[16], reason[64];
+    char kind[16];            /* start-run's kind, "" when not sent */
     int frames, acquired, nrecon;
     char file[200];
 } srun;
@@ -299,6 +300,8 @@ static void handle(sd *s, conn *c, const char *line)
         snprintf(r->screen, sizeof r->screen, "%s", b1[0] >= '0' && b1[0] <= '9' && slot < 5 ? sn[slot] : b1);
         snprintf(r->mask, sizeof r->mask, "%s", name_arg(args, "mask", "m", b2, sizeof b2));
         r->frames = (int)json_object_get_int_member(args, "frames");
+        if (json_object_has_member(args, "kind"))
+            snprintf(r->kind, sizeof r->kind, "%s", json_object_get_string_member(args, "kind"));
         snprintf(r->state, sizeof r->state, "queued");
         json_object_set_string_member(res, "run", r->uuid);
         json_object_set_string_member(res, "state", "queued");

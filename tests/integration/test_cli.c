@@ -82,6 +82,29 @@ TEST(binary_bench_table_and_failed_run)
     g_free(err);
 }
 
+/* --kind reaches every start-run (calibrator runs for the screens'
+ * references, darks, flats); an unknown kind starts nothing. */
+TEST(binary_bench_kind_reaches_every_run)
+{
+    sd s;
+    CHECK(sd_start(&s) == 0, "stub daemon");
+    char *out = NULL, *err = NULL, *out2 = NULL, *err2 = NULL;
+    int rc = run_cmd(&s, cmd_experiment, &out, &err, "specklab experiment", "binary-bench",
+                     "--screens", "1,2", "--kind", "calibrator", NULL);
+    int rc2 = run_cmd(&s, cmd_experiment, &out2, &err2, "specklab experiment", "binary-bench",
+                      "--screens", "1", "--kind", "bias", NULL);
+    pthread_mutex_lock(&s.mu);
+    int nruns = s.nruns, all = nruns == 2;
+    for (int i = 0; i < nruns; i++)
+        all = all && !strcmp(s.runs[i].kind, "calibrator");
+    pthread_mutex_unlock(&s.mu);
+    sd_stop(&s);
+    CHECK(rc == 0 && all, "exit %d, %d runs, kinds not all calibrator: %s", rc, nruns, err);
+    CHECK(rc2 == 2 && err2 && strstr(err2, "--kind 'bias'"), "kind bias: exit %d: %s", rc2,
+          err2);
+    g_free(out), g_free(err), g_free(out2), g_free(err2);
+}
+
 TEST(binary_bench_unknown_screen_starts_nothing)
 {
     sd s;
@@ -486,7 +509,7 @@ TEST(binary_of_a_cube_and_closure_keywords)
 }
 
 TC_MAIN(TC_CASE(binary_bench_json_one_row_per_run), TC_CASE(binary_bench_table_and_failed_run),
-        TC_CASE(binary_bench_unknown_screen_starts_nothing), TC_CASE(runs_list_passes_filters),
+        TC_CASE(binary_bench_kind_reaches_every_run), TC_CASE(binary_bench_unknown_screen_starts_nothing), TC_CASE(runs_list_passes_filters),
         TC_CASE(runs_show_prefix_and_not_found), TC_CASE(export_copies_files_and_sidecar),
         TC_CASE(recon_run_new_reconstruction_and_copy), TC_CASE(not_running_and_run_id_shape),
         TC_CASE(real_daemon_queries_and_errors), TC_CASE(real_daemon_failed_run_and_two_clients),

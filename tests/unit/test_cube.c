@@ -2,8 +2,8 @@
  * errors, and the real A 258 frames checked against a hand-decoded read. */
 #include "io/cube.h"
 #include "tcheck.h"
+#include "tmpdir_fx.h"
 
-#include <dirent.h>
 #include <fitsio.h>
 #include <signal.h>
 #include <stdint.h>
@@ -13,42 +13,6 @@
 #include <unistd.h>
 
 /* ---- helpers ----------------------------------------------------------- */
-
-typedef struct tmpdir {
-    char dir[64];
-    char buf[4][256]; /* scratch paths */
-} tmpdir;
-
-static int tmp_make(tmpdir *d)
-{
-    snprintf(d->dir, sizeof d->dir, "/tmp/test_cube.XXXXXX");
-    return mkdtemp(d->dir) != NULL;
-}
-
-static void tmp_remove(tmpdir *d)
-{
-    DIR *dp = opendir(d->dir);
-    struct dirent *e;
-    char p[512];
-    while (dp && (e = readdir(dp))) {
-        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) {
-            snprintf(p, sizeof p, "%s/%s", d->dir, e->d_name);
-            unlink(p);
-        }
-    }
-    if (dp)
-        closedir(dp);
-    rmdir(d->dir);
-}
-
-/* d->buf[i] = dir/name */
-static const char *tmp_path(tmpdir *d, int i, const char *name)
-{
-    char tmp[sizeof d->buf[0]]; /* via a copy: d->dir is in *d too */
-    snprintf(tmp, sizeof tmp, "%s/%s", d->dir, name);
-    memcpy(d->buf[i], tmp, sizeof tmp);
-    return d->buf[i];
-}
 
 /* A seq whose pixel values all differ: v = base + x + 10 y + 100 k. */
 static seq *pattern_seq(int w, int h, int n, float base)

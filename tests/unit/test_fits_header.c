@@ -9,49 +9,14 @@
 #include "base/version.h"
 #include "io/cube.h"
 #include "tcheck.h"
+#include "tmpdir_fx.h"
 
-#include <dirent.h>
 #include <fitsio.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
-
-typedef struct tmpdir {
-    char dir[64];
-    char path[4][256];
-} tmpdir;
-
-static int tmp_make(tmpdir *d)
-{
-    snprintf(d->dir, sizeof d->dir, "/tmp/test_fits_header.XXXXXX");
-    return mkdtemp(d->dir) != NULL;
-}
-
-static void tmp_remove(tmpdir *d)
-{
-    DIR *dp = opendir(d->dir);
-    struct dirent *e;
-    char p[512];
-    while (dp && (e = readdir(dp))) {
-        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) {
-            snprintf(p, sizeof p, "%s/%s", d->dir, e->d_name);
-            unlink(p);
-        }
-    }
-    if (dp)
-        closedir(dp);
-    rmdir(d->dir);
-}
-
-static const char *tmp_path(tmpdir *d, int i, const char *name)
-{
-    char tmp[sizeof d->path[0]];
-    snprintf(tmp, sizeof tmp, "%s/%s", d->dir, name);
-    memcpy(d->path[i], tmp, sizeof tmp);
-    return d->path[i];
-}
 
 static int copy_file(const char *src, const char *dst)
 {

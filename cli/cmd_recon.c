@@ -21,7 +21,7 @@
 typedef struct recon_args {
     char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
     char *dark, *flat, *flat_dark;
-    int projections, r2, no_prep, no_detect, no_recentre, learn_badpix, json, quiet, threads, refine, binary, overwrite;
+    int projections, r2, no_prep, no_detect, no_recentre, no_stf, learn_badpix, json, quiet, threads, refine, binary, overwrite;
     double photons, gain_adu_per_photon, saturation, wiener, target_error;
 } recon_args;
 
@@ -77,6 +77,8 @@ static void parameters_json(JsonBuilder *b, const pipeline_opts *o,
         cli_json_num(b, "NTRI", (double)p->ntriples);
         cli_json_num(b, "GAIN", p->gain_adu / p->scale);
         cli_json_num(b, "MISF", p->misfit);
+        cli_json_num(b, "FILL", p->stf_fill);
+        cli_json_num(b, "STF", p->stf_d_r0);
     } else {
         cli_json_num(b, "NANG", p->nangles);
         cli_json_num(b, "NPAIR", p->npairs);
@@ -169,6 +171,7 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     o->learn_badpix = a->learn_badpix;
     o->detect = !a->no_detect;
     o->recentre = !a->no_recentre;
+    o->stf_model = !a->no_stf;
     o->badpix_path = a->badpix;
     o->dark_path = a->dark;
     o->flat_path = a->flat;
@@ -337,6 +340,7 @@ int cmd_recon(int argc, char **argv)
         {"badpix", 0, 0, G_OPTION_ARG_FILENAME, &a.badpix, "bad-pixel map: a FITS image of the frame size, nonzero = bad", "FITS"},
         {"no-detect", 0, 0, G_OPTION_ARG_NONE, &a.no_detect, "do not learn the detector from the raw frames (bad pixels, saturation, sky region, recentring)", NULL},
         {"no-recentre", 0, 0, G_OPTION_ARG_NONE, &a.no_recentre, "do not recentre frames on the speckle cloud", NULL},
+        {"no-stf", 0, 0, G_OPTION_ARG_NONE, &a.no_stf, "direct on a filled pupil without --ref: keep sqrt(power) as the modulus (no model speckle transfer function)", NULL},
         {"threads", 0, 0, G_OPTION_ARG_INT, &a.threads, "threads (direct: default 2; tsm: online CPUs, at most 4)", "N"},
         {"phase-weights", 0, 0, G_OPTION_ARG_STRING, &a.phase_weights, "direct: weights of the phase recursion mod|snr|unit (default: automatic)", "W"},
         {"refine", 0, 0, G_OPTION_ARG_INT, &a.refine, "direct: least-squares phase passes (default -1: up to 40 when the phase recursion's closure misfit says it went astray; 0: none)", "N"},

@@ -36,12 +36,19 @@ static int tsm_add_fn(void *h, const float *f) { return tsm_add(h, f); }
 /* The power spectrum of a whole sequence (pass 1 of direct, and the
  * reference).  When the gain is unknown but photons are, g comes from the
  * mean flux of this very pass. */
+typedef struct seq_ps {
+    double *ps;       /* w*h: the bias-free mean power spectrum */
+    double *le;       /* w*h or NULL: powspec_aligned_power */
+    double g, bias;   /* gain used (or found), white-noise level */
+    int nframes;
+} seq_ps;
+
 static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
-                            double photons, double *ps, double *g_out,
-                            double *bias_out, int *nframes_out, sl_err *err)
+                            double photons, seq_ps *out, sl_err *err)
 {
     powspec_opts po;
     powspec_opts_default(&po);
+    po.aligned = out->le != NULL;
     po.window = o->window;
     po.tukey_alpha = o->tukey_alpha;
     po.measure = o->fftw_measure;
@@ -58,14 +65,13 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
          * this pass the floor estimate stands for the photon bias. */
         g = powspec_mean_flux(p) / photons;
     }
-    if (rc == SL_OK && (rc = powspec_result(p, ps)) != SL_OK)
+    if (rc == SL_OK && (rc = powspec_result(p, out->ps)) != SL_OK)
         sl_seterr(err, rc, "%s", powspec_errmsg(p));
-    if (g_out)
-        *g_out = g;
-    if (bias_out)
-        *bias_out = powspec_bias(p);
-    if (nframes_out)
-        *nframes_out = powspec_nframes(p);
+    if (rc == SL_OK && out->le && powspec_aligned_power(p, out->le) != SL_OK)
+        out->le = NULL; /* one frame: no long exposure to compare */
+    out->g = g;
+    out->bias = powspec_bias(p);
+    out->nframes = powspec_nframes(p);
     powspec_free(p);
     return rc;
 }
@@ -153,8 +159,9 @@ static int reference_modulus(stream *s, stream *ref, const pipeline_opts *o,
 {
     double gr = 0, pr = 0;
     int src, rc;
+    seq_ps sp = {.ps = ps_ref};
     if ((rc = stream_photon_stats(ref, o, &pr, &gr, &src, err)) != SL_OK ||
-        (rc = sequence_powspec(ref, o, gr, pr, ps_ref, NULL, NULL, NULL, err)) != SL_OK)
+        (rc = sequence_powspec(ref, o, gr, pr, &sp, err)) != SL_OK)
         return rc;
     powspec_modulus(ps, ps_ref, s->w, s->h, o->wiener > 0 ? o->wiener : 1e-3, mod);
     if (!o->target_path)
@@ -166,23 +173,15 @@ static int reference_modulus(stream *s, stream *ref, const pipeline_opts *o,
     return SL_OK;
 }
 
-static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
-                      double photons, double g, float *img, pipeline_report *rep,
-                      pipeline_binary *bin, sl_err *err)
+/* Direct's first pass: the power spectrum (and, for the filled-pupil
+ * model, the aligned long exposure), its support and cut-off. */
+static int direct_powspec(stream *s, const pipeline_opts *o, double photons,
+                          seq_ps *sp, unsigned char *support, double *rcut,
+                          sl_err *err)
 {
-    size_t n = (size_t)s->w * s->h;
-    double *ps = malloc(n * sizeof *ps), *ps_ref = NULL, *mod = NULL;
-    unsigned char *support = malloc(n);
-    bispec *b = NULL;
-    int rc = SL_ENOMEM;
-    if (!ps || !support) {
-        sl_seterr(err, rc, "out of memory");
-        goto free_all;
-    }
-    double noise = 0;
-    int nps = 1;
-    if ((rc = sequence_powspec(s, o, g, photons, ps, &g, &noise, &nps, err)) != SL_OK)
-        goto free_all;
+    int rc = sequence_powspec(s, o, sp->g, photons, sp, err);
+    if (rc != SL_OK)
+        return rc;
     /* Support at 3 sigma, not 5: the threshold acts on the object's power,
      * so at low photon counts it keeps a binary's fringe maxima and drops
      * its minima, which exaggerates the fringe contrast: the true spectrum
@@ -191,31 +190,75 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
      * photons, seeds 1-4: dm error -0.46 -> -0.34, c 0.900 -> 0.921;
      * six-star at 1000 photons c 0.74 -> 0.85; noiseless unchanged (the
      * 1e-6 floor decides there). */
+    powspec_support(sp->ps, s->w, s->h, 3, 1e-6, 1.0, sp->bias / sqrt(sp->nframes),
+                    support, rcut);
+    return SL_OK;
+}
+
+/* The modulus bispec_image uses: NULL (its own sqrt(power)), the
+ * reference's, or the filled-pupil model's. */
+static int direct_modulus(stream *s, stream *ref, const pipeline_opts *o,
+                          const seq_ps *sp, const unsigned char *support,
+                          double **mod, pipeline_report *rep, sl_err *err)
+{
+    size_t n = (size_t)s->w * s->h;
+    if (!ref && !sp->le)
+        return SL_OK;
+    double *m = malloc(n * sizeof *m), *ps_ref = ref ? malloc(n * sizeof *ps_ref) : NULL;
+    int rc = SL_OK;
+    if (!m || (ref && !ps_ref))
+        rc = sl_seterr(err, SL_ENOMEM, "out of memory");
+    else if (ref)
+        rc = reference_modulus(s, ref, o, sp->ps, ps_ref, m, err);
+    else {
+        pipe_stf_in si = {.ps = sp->ps, .le = sp->le, .support = support,
+                          .w = s->w, .h = s->h, .nframes = sp->nframes};
+        if (!pipe_stf_modulus(&si, m, rep))
+            free(m), m = NULL;
+    }
+    free(ps_ref);
+    if (rc != SL_OK)
+        free(m), m = NULL;
+    *mod = m;
+    return rc;
+}
+
+static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
+                      double photons, double g, float *img, pipeline_report *rep,
+                      pipeline_binary *bin, sl_err *err)
+{
+    size_t n = (size_t)s->w * s->h;
+    int want_le = !ref && o->stf_model;
+    seq_ps sp = {.ps = malloc(n * sizeof *sp.ps),
+                 .le = want_le ? malloc(n * sizeof *sp.le) : NULL, .g = g};
+    double *mod = NULL, *le = sp.le;
+    unsigned char *support = malloc(n);
+    bispec *b = NULL;
+    int rc = SL_ENOMEM;
+    if (!sp.ps || !support || (want_le && !sp.le)) {
+        sl_seterr(err, rc, "out of memory");
+        goto free_all;
+    }
     double rcut = 0;
-    powspec_support(ps, s->w, s->h, 3, 1e-6, 1.0, noise / sqrt(nps), support, &rcut);
-    double snr = support_snr(ps, support, n, noise);
+    if ((rc = direct_powspec(s, o, photons, &sp, support, &rcut, err)) != SL_OK)
+        goto free_all;
+    g = sp.g;
+    double snr = support_snr(sp.ps, support, n, sp.bias);
     bispec_opts bo;
     direct_opts(s, o, g, photons, snr, support, &bo);
     if (!(b = bispec_new(s->w, s->h, &bo, err))) {
         rc = err ? err->code : SL_ENOMEM;
         goto free_all;
     }
-    if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK)
+    if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK ||
+        (rc = direct_modulus(s, ref, o, &sp, support, &mod, rep, err)) != SL_OK)
         goto free_all;
-    if (ref) {
-        ps_ref = malloc(n * sizeof *ps_ref);
-        mod = malloc(n * sizeof *mod);
-        rc = !ps_ref || !mod ? sl_seterr(err, SL_ENOMEM, "out of memory")
-                             : reference_modulus(s, ref, o, ps, ps_ref, mod, err);
-        if (rc != SL_OK)
-            goto free_all;
-    }
     if ((rc = bispec_image(b, mod, img)) != SL_OK) {
         sl_seterr(err, rc, "%s", bispec_errmsg(b));
         goto free_all;
     }
     if (o->closure_binary) {
-        pipe_binary_in bi = {.b = b, .ps2d = ps, .rcut_px = rcut, .noise = noise,
+        pipe_binary_in bi = {.b = b, .ps2d = sp.ps, .rcut_px = rcut, .noise = sp.bias,
                              .nframes = bispec_nframes(b)};
         pipe_binary_measure(&bi, img, s->w, s->h, bin);
     }
@@ -228,8 +271,8 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     rep->gain_adu = g;
 free_all:
     bispec_free(b);
-    free(ps);
-    free(ps_ref);
+    free(sp.ps);
+    free(le);
     free(mod);
     free(support);
     return rc;

@@ -115,6 +115,9 @@ typedef struct pipeline_opts {
                                * below); 0: the raw bispectrum */
     double cutoff_cyc_px;     /* TSM cut-off; 0: Nyquist, or the measured
                                * support with PIPE_SKIP_SUPPORT */
+    int stf_model;            /* direct without a reference, on a filled
+                               * pupil: divide a modelled speckle transfer
+                               * function out of the modulus (default 1) */
     /* Progress, for a person waiting: called from pipeline_run's thread
      * with every frame fed to an estimator (done and an estimate of the
      * total, in frames fed; the total can grow as the run learns its plan,
@@ -213,6 +216,9 @@ typedef struct pipeline_report {
     double gain_adu;          /* photon-bias gain; 0 = floor */
     double misfit;            /* phase recursion's closure misfit */
     double support_snr;       /* power-spectrum SNR over the support */
+    double stf_fill;          /* support's fill inside 0.8 of the cut-off */
+    double stf_d_r0;          /* filled pupil: the D/r0 of the STF divided
+                               * out (pipeline_stf.c); 0 = none */
     /* TSM */
     int nangles, npairs;
     double cutoff_cyc_px;

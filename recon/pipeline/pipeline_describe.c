@@ -63,6 +63,8 @@ static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
         num(k, "RECNTRI", (double)p->ntriples, "closure triangles stored");
         num(k, "RECMISF", p->misfit, "phase recursion's closure misfit");
         num(k, "RECSNRPS", p->support_snr, "power-spectrum SNR over the support");
+        num(k, "RECFILL", p->stf_fill, "support's fill inside 0.8 of the cut-off");
+        num(k, "RECSTF", p->stf_d_r0, "D/r0 of the model STF divided out, 0 = none");
         num(k, "RECGAIN", p->gain_adu / p->scale, "[adu/photon] photon-bias gain, 0 = floor");
         return;
     }

@@ -112,6 +112,20 @@ typedef struct pipe_binary_in {
     double noise, nframes;
 } pipe_binary_in;
 
+/* The filled-pupil modulus (pipeline_stf.c): the power spectrum ps and
+ * the aligned long exposure's power le (powspec_aligned_power), both
+ * w x h, bias-free, with their support and frame count. */
+typedef struct pipe_stf_in {
+    const double *ps, *le;
+    const unsigned char *support;
+    int w, h, nframes;
+} pipe_stf_in;
+
+/* 1 and the corrected modulus in mod when the support is a filled pupil
+ * the model can describe, 0 (mod untouched) otherwise; rep->stf_fill and
+ * rep->stf_d_r0 say which and why. */
+int pipe_stf_modulus(const pipe_stf_in *in, double *mod, pipeline_report *rep);
+
 /* Measure the binary on img (w x h, the estimator's own size) with every
  * fit and judge what the data support (pipeline.h, pipeline_binary). */
 void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,

@@ -54,6 +54,7 @@ static const optdef defs[] = {
     {"learn-badpix", K_FLAG, F(learn_badpix), NULL},
     {"no-detect", K_NOFLAG, F(detect), NULL},
     {"no-recentre", K_NOFLAG, F(recentre), NULL},
+    {"no-stf", K_NOFLAG, F(stf_model), NULL},
     {"threads", K_INT, F(nthreads), NULL},
     {"phase-weights", K_CHOICE, F(phase_weight), weights},
     {"refine", K_INT, F(refine_iters), NULL},
@@ -72,6 +73,7 @@ void pipeline_opts_defaults(pipeline_opts *o)
     o->prep = 1;
     o->detect = 1;
     o->recentre = 1;
+    o->stf_model = 1;
     o->fftw_measure = 1;
     o->skips = -1;
     o->refine_iters = -1;

@@ -24,6 +24,8 @@ struct powspec {
     fftwf_plan plan;
     double *ps;           /* h*wc sum of |F|^2 */
     double complex *ft;   /* h*wc sum of F */
+    double complex *aft;  /* h*wc sum of F aligned (opts.aligned) or NULL */
+    double complex *ex, *ey; /* wc and h: one frame's alignment ramps */
     double flux, pbias;   /* sums of frame flux and photon (+ read) bias */
     double rbias;         /* read-noise bias per frame: rn^2 sum w^2 */
     int n;
@@ -120,6 +122,13 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
     p->ft = calloc(nh, sizeof *p->ft);
     if (!p->in || !p->out || !p->ps || !p->ft)
         goto fail_alloc;
+    if (o->aligned) {
+        p->aft = calloc(nh, sizeof *p->aft);
+        p->ex = malloc((size_t)p->wc * sizeof *p->ex);
+        p->ey = malloc((size_t)h * sizeof *p->ey);
+        if (!p->aft || !p->ex || !p->ey)
+            goto fail_alloc;
+    }
     if (o->window != POWSPEC_WIN_NONE) {
         p->win = malloc(n * sizeof *p->win);
         if (!p->win)
@@ -154,12 +163,32 @@ void powspec_free(powspec *p)
     free(p->win);
     free(p->ps);
     free(p->ft);
+    free(p->aft);
+    free(p->ex);
+    free(p->ey);
     free(p);
 }
 
 const char *powspec_errmsg(const powspec *p)
 {
     return p ? p->err.msg : "no powspec handle";
+}
+
+/* The frame's spectrum moved to its first-harmonic centroid (the phase
+ * of F at (1, 0) and (0, 1) is the circular centroid's), added to aft:
+ * per-frame tip-tilt leaves the long exposure.  2 w h flops a frame. */
+static void add_aligned(powspec *p)
+{
+    double ax = cargf(p->out[1]), ay = cargf(p->out[p->wc]);
+    for (int i = 0; i < p->wc; i++)
+        p->ex[i] = cexp(-I * i * ax);
+    for (int j = 0; j < p->h; j++)
+        p->ey[j] = cexp(-I * (j <= p->h / 2 ? j : j - p->h) * ay);
+    for (int j = 0; j < p->h; j++)
+        for (int i = 0; i < p->wc; i++) {
+            size_t k = (size_t)j * p->wc + i;
+            p->aft[k] += p->out[k] * p->ex[i] * p->ey[j];
+        }
 }
 
 int powspec_add(powspec *p, const float *frame)
@@ -186,6 +215,8 @@ int powspec_add(powspec *p, const float *frame)
         p->ps[k] += re * re + im * im;
         p->ft[k] += re + I * im;
     }
+    if (p->aft)
+        add_aligned(p);
     p->flux += flux;
     p->pbias += p->o.adu_per_photon * w2flux + p->rbias;
     p->n++;
@@ -297,6 +328,22 @@ int powspec_mean_ft(const powspec *p, double complex *ft)
             int mir;
             double complex v = p->ft[half_index(p, i, j, &mir)] * inv;
             ft[(size_t)j * p->w + i] = mir ? conj(v) : v;
+        }
+    return SL_OK;
+}
+
+int powspec_aligned_power(const powspec *p, double *le)
+{
+    if (!p || !le || !p->aft || p->n < 2)
+        return SL_EINVAL;
+    double inv = 1.0 / p->n;
+    for (int j = 0; j < p->h; j++)
+        for (int i = 0; i < p->w; i++) {
+            int mir;
+            size_t k = half_index(p, i, j, &mir);
+            double complex m = p->aft[k] * inv;
+            double m2 = creal(m) * creal(m) + cimag(m) * cimag(m);
+            le[(size_t)j * p->w + i] = m2 - (p->ps[k] * inv - m2) / (p->n - 1);
         }
     return SL_OK;
 }

@@ -43,6 +43,7 @@ typedef struct powspec_opts {
                             * (POWSPEC_BIAS_PHOTON; >= 0, default 0) */
     double floor_rho;      /* floor region rho > floor_rho (default 1.0) */
     int measure;           /* 1: FFTW_MEASURE (default), 0: ESTIMATE */
+    int aligned;           /* 1: also the aligned mean spectrum (default 0) */
 } powspec_opts;
 
 void powspec_opts_default(powspec_opts *o);
@@ -68,6 +69,13 @@ double powspec_bias(const powspec *p);
 double powspec_mean_flux(const powspec *p);
 /* Mean of the frames' FFTs (windowed), w*h, FFT order. */
 int powspec_mean_ft(const powspec *p, double complex *ft);
+
+/* With opts.aligned: |mean of the frames' spectra, each moved to its
+ * first-harmonic centroid|^2, less its finite-sample bias (var / (n - 1):
+ * the noise's share goes too), w*h, FFT order.  Over powspec_result's
+ * spectrum plus its bias it is the tilt-removed spectral ratio (stf.h).
+ * SL_EINVAL without opts.aligned or with fewer than 2 frames. */
+int powspec_aligned_power(const powspec *p, double *le);
 
 /* The apodisation window (separable, periodic form: pixel x of n gets
  * 0.5 (1 - cos(2 pi x / n)) for Hann; Tukey is flat except for cosine

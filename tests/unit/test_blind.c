@@ -160,10 +160,61 @@ TEST(six_star_either_phase_model)
         CHECK(pipeline_run(paths, 1, &o, &r, &e) == SL_OK, "%s", e.msg);
         bench_score sc;
         CHECK(bench_score_image(r.image, &c.truth, BENCH_HP_SIGMA_PX, &sc, &e) == SL_OK, "%s", e.msg);
+        double d_r0 = r.report.stf_d_r0;
         pipeline_result_clear(&r);
         blind_remove(&c);
         CHECK(sc.c >= 0.95, "%s phases: c %.4f", pm ? "piston" : "screen", sc.c);
+        /* a mask's STF is flat enough: no filled-pupil model on it */
+        CHECK(d_r0 == 0, "%s phases: a filled-pupil STF (D/r0 %g) taken for the mask",
+              pm ? "piston" : "screen", d_r0);
     }
+}
+
+/* A filled 1.1 m pupil at r0 0.2 m (D/r0 5.5), the camera baseline's
+ * detector (2e4 photons, 12 bits, 3 e-), no reference: the modelled
+ * speckle transfer function lifts direct and auto from c 0.89 to 0.99,
+ * D/r0 comes from the data's spectral ratio, and the binary stays. */
+TEST(filled_pupil_without_reference)
+{
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.scene = "binary";
+    s.width = s.height = 128;
+    s.sep_lod = 6, s.pa_deg = 57, s.dm_mag = 1;
+    s.photons = 2e4, s.gain_e_per_adu = 2, s.read_noise_e = 3;
+    s.bias_adu = 100, s.adc_bits = 12;
+    s.mask = "full";
+    s.blind = 1;
+    blind_cube c;
+    sl_err e;
+    CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
+    const int methods[] = {PIPE_DIRECT, PIPE_AUTO, PIPE_DIRECT};
+    double cc[3], d_r0[3];
+    for (int i = 0; i < 3 && !t->failed; i++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = methods[i];
+        o.fftw_measure = 0;
+        o.stf_model = i < 2;
+        pipeline_result r;
+        const char *paths[] = {c.path};
+        CHECK(pipeline_run(paths, 1, &o, &r, &e) == SL_OK, "%s", e.msg);
+        bench_score sc;
+        int rc = bench_score_image(r.image, &c.truth, BENCH_HP_SIGMA_PX, &sc, &e);
+        d_r0[i] = r.report.stf_d_r0;
+        pipeline_result_clear(&r);
+        CHECK(rc == SL_OK, "%s", e.msg);
+        cc[i] = sc.c;
+    }
+    blind_remove(&c);
+    CHECK(!t->failed, "%s", t->msg);
+    for (int i = 0; i < 2; i++) {
+        CHECK(cc[i] >= 0.97, "%s: c %.4f", pipeline_method_name(methods[i]), cc[i]);
+        CHECK(fabs(d_r0[i] / 5.5 - 1) < 0.25, "%s: D/r0 %.2f, truth 5.5",
+              pipeline_method_name(methods[i]), d_r0[i]);
+    }
+    CHECK(cc[2] < 0.92 && d_r0[2] == 0, "--no-stf: c %.4f, D/r0 %g (the plain modulus "
+          "should cap c near 0.89)", cc[2], d_r0[2]);
 }
 
 /* A point source through the mask, noiseless: its reconstruction's
@@ -270,5 +321,6 @@ TEST(every_promised_keyword_is_written)
 }
 
 TC_MAIN(TC_CASE(camera_cube_with_hot_pixels_every_method), TC_CASE(amateur_close_pair_8_bit),
+        TC_CASE(filled_pupil_without_reference),
         TC_CASE(six_star_either_phase_model), TC_CASE(a_point_source_is_unresolved),
         TC_CASE(a258_methods_agree_or_say_so), TC_CASE(every_promised_keyword_is_written))

@@ -1,0 +1,396 @@
+/* stf.c - see stf.h. */
+#include "stf.h"
+
+#include <complex.h>
+#include <fftw3.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/rng.h"
+
+struct stf_model {
+    int dp, g, nreal, npup;
+    int *pup;              /* npup indices of the pupil's pixels in g x g */
+    double *screen;        /* nreal x npup unit-r0 (1 px) phases, rad */
+    fftw_complex *buf;     /* g x g */
+    fftw_complex *lesum;   /* g x g: sum of aligned T */
+    fftw_complex *ramp;    /* 2 g: one realisation's alignment ramps */
+    fftw_plan plan;        /* in place, forward */
+    double *t0;            /* nbins: diffraction OTF */
+};
+
+/* The least n' >= n with no prime factor above 5: FFTW's fast sizes (a
+ * factor of 17 made the fit's transforms several times slower). */
+static int fft_size(int n)
+{
+    for (;; n++) {
+        int r = n;
+        while (r % 2 == 0)
+            r /= 2;
+        while (r % 3 == 0)
+            r /= 3;
+        while (r % 5 == 0)
+            r /= 5;
+        if (r == 1)
+            return n;
+    }
+}
+
+/* Three levels of subharmonics (Lane et al. 1992) added to the complex
+ * screen pair k, k + 1 at the pupil's pixels: a periodic grid G across
+ * has no power at scales past G, which the long exposure's tilt-free part
+ * still feels at the pupil's scale. */
+static void add_subharmonics(stf_model *m, rng *r, int G, int off, int k)
+{
+    double complex c[3][3];
+    for (int l = 1; l <= 3; l++) {
+        double df = 1.0 / (G * pow(3, l));
+        for (int b = -1; b <= 1; b++)
+            for (int a = -1; a <= 1; a++) {
+                double f = hypot(a, b) * df;
+                double amp = f > 0 ? sqrt(0.023 * pow(f, -11.0 / 3)) * df : 0;
+                double re = rng_normal(r), im = rng_normal(r);
+                c[b + 1][a + 1] = amp * (re + I * im);
+            }
+        for (int t = 0; t < m->npup; t++) {
+            int x = m->pup[t] % m->g - off, y = m->pup[t] / m->g - off;
+            double complex ex = cexp(2 * M_PI * I * df * x), ey = cexp(2 * M_PI * I * df * y);
+            double complex exs[3] = {conj(ex), 1, ex}, eys[3] = {conj(ey), 1, ey}, v = 0;
+            for (int b = 0; b < 3; b++)
+                for (int a = 0; a < 3; a++)
+                    v += c[b][a] * exs[a] * eys[b];
+            m->screen[(size_t)k * m->npup + t] += creal(v);
+            if (k + 1 < m->nreal)
+                m->screen[(size_t)(k + 1) * m->npup + t] += cimag(v);
+        }
+    }
+}
+
+/* Unit screens: r0 = 1 px, Kolmogorov phase spectrum 0.023 r0^(-5/3)
+ * f^(-11/3) drawn on a periodic grid twice the pupil across, with
+ * subharmonics for the larger scales, and cut to the pupil.  The real and
+ * imaginary parts of one transform are two independent screens. */
+static int draw_screens(stf_model *m, uint64_t seed)
+{
+    int G = fft_size(2 * m->dp);
+    size_t nn = (size_t)G * G;
+    fftw_complex *s = fftw_alloc_complex(nn);
+    double *amp = malloc(nn * sizeof *amp);
+    fftw_plan p = s ? fftw_plan_dft_2d(G, G, s, s, FFTW_FORWARD, FFTW_ESTIMATE) : NULL;
+    if (!s || !amp || !p) {
+        if (p)
+            fftw_destroy_plan(p);
+        fftw_free(s);
+        free(amp);
+        return SL_ENOMEM;
+    }
+    for (int j = 0; j < G; j++)
+        for (int i = 0; i < G; i++) {
+            double fx = (i <= G / 2 ? i : i - G) / (double)G;
+            double fy = (j <= G / 2 ? j : j - G) / (double)G;
+            double f = hypot(fx, fy);
+            amp[(size_t)j * G + i] = f > 0 ? sqrt(0.023 * pow(f, -11.0 / 3)) / G : 0;
+        }
+    rng r;
+    rng_init(&r, seed, 0x57f);
+    int off = m->g / 2 - m->dp / 2 - 1; /* the pupil's box inside G x G */
+    for (int k = 0; k < m->nreal; k += 2) {
+        for (size_t t = 0; t < nn; t++) {
+            double re = rng_normal(&r), im = rng_normal(&r);
+            s[t] = amp[t] * (re + I * im);
+        }
+        fftw_execute(p);
+        for (int t = 0; t < m->npup; t++) {
+            int x = m->pup[t] % m->g - off, y = m->pup[t] / m->g - off;
+            fftw_complex v = s[(size_t)y * G + x];
+            m->screen[(size_t)k * m->npup + t] = creal(v);
+            if (k + 1 < m->nreal)
+                m->screen[(size_t)(k + 1) * m->npup + t] = cimag(v);
+        }
+        add_subharmonics(m, &r, G, off, k);
+    }
+    fftw_destroy_plan(p);
+    fftw_free(s);
+    free(amp);
+    return SL_OK;
+}
+
+/* Mean of |v|^2 (or v) over the rings of radius i px, i <= dp. */
+static void radial(const stf_model *m, const double *v, double *out)
+{
+    int nb = m->dp + 1;
+    double *cnt = calloc((size_t)nb, sizeof *cnt);
+    memset(out, 0, (size_t)nb * sizeof *out);
+    if (!cnt)
+        return;
+    for (int j = 0; j < m->g; j++)
+        for (int i = 0; i < m->g; i++) {
+            int p = i <= m->g / 2 ? i : i - m->g, q = j <= m->g / 2 ? j : j - m->g;
+            long b = lround(hypot(p, q));
+            if (b < nb) {
+                out[b] += v[(size_t)j * m->g + i];
+                cnt[b]++;
+            }
+        }
+    for (int b = 0; b < nb; b++)
+        out[b] = cnt[b] > 0 ? out[b] / cnt[b] : 0;
+    free(cnt);
+}
+
+/* The transfer function of pupil field phases phi (or none), normalised to
+ * 1 at 0, into m->buf; aligned on its first-harmonic centroid. */
+static void transfer(stf_model *m, const double *phi, double scale)
+{
+    size_t n = (size_t)m->g * m->g;
+    memset(m->buf, 0, n * sizeof *m->buf);
+    for (int t = 0; t < m->npup; t++)
+        m->buf[m->pup[t]] = phi ? cexp(I * scale * phi[t]) : 1.0;
+    fftw_execute(m->plan);
+    for (size_t k = 0; k < n; k++)
+        m->buf[k] = creal(m->buf[k]) * creal(m->buf[k]) +
+                    cimag(m->buf[k]) * cimag(m->buf[k]);
+    fftw_execute(m->plan);
+    double dc = creal(m->buf[0]);
+    double ax = carg(m->buf[1]), ay = carg(m->buf[m->g]);
+    fftw_complex *ex = m->ramp, *ey = m->ramp + m->g;
+    for (int i = 0; i < m->g; i++) {
+        int p = i <= m->g / 2 ? i : i - m->g;
+        ex[i] = cexp(-I * p * ax) / dc;
+        ey[i] = cexp(-I * p * ay);
+    }
+    for (int j = 0; j < m->g; j++)
+        for (int i = 0; i < m->g; i++)
+            m->buf[(size_t)j * m->g + i] *= ex[i] * ey[j];
+}
+
+stf_model *stf_model_new(int dp, int nreal, uint64_t seed, sl_err *err)
+{
+    if (dp < 16 || dp > 128 || nreal < 8) {
+        sl_seterr(err, SL_EINVAL, "stf_model_new: pupil %d px (16..128), "
+                  "%d realisations (>= 8)", dp, nreal);
+        return NULL;
+    }
+    stf_model *m = calloc(1, sizeof *m);
+    if (!m)
+        goto fail_nomem;
+    m->dp = dp;
+    m->g = fft_size(2 * dp + 4); /* the OTF's support, 2 dp + 1, does not wrap */
+    m->nreal = nreal;
+    size_t n = (size_t)m->g * m->g;
+    m->pup = malloc(n * sizeof *m->pup);
+    m->buf = fftw_alloc_complex(n);
+    m->lesum = fftw_alloc_complex(n);
+    m->ramp = fftw_alloc_complex(2 * (size_t)m->g);
+    m->t0 = malloc((size_t)(dp + 1) * sizeof *m->t0);
+    if (!m->pup || !m->buf || !m->lesum || !m->ramp || !m->t0)
+        goto fail_free;
+    for (int y = 0; y < m->g; y++)
+        for (int x = 0; x < m->g; x++)
+            if (hypot(x + 0.5 - m->g / 2, y + 0.5 - m->g / 2) <= 0.5 * dp)
+                m->pup[m->npup++] = y * m->g + x;
+    m->screen = malloc((size_t)nreal * m->npup * sizeof *m->screen);
+    m->plan = fftw_plan_dft_2d(m->g, m->g, m->buf, m->buf, FFTW_FORWARD,
+                               FFTW_ESTIMATE);
+    if (!m->screen || !m->plan || draw_screens(m, seed) != SL_OK)
+        goto fail_free;
+    transfer(m, NULL, 0);
+    double *re = (double *)m->lesum; /* scratch: g x g doubles fit */
+    for (size_t k = 0; k < n; k++)
+        re[k] = creal(m->buf[k]);
+    radial(m, re, m->t0);
+    return m;
+fail_free:
+    stf_model_free(m);
+fail_nomem:
+    sl_seterr(err, SL_ENOMEM, "stf_model_new: out of memory");
+    return NULL;
+}
+
+void stf_model_free(stf_model *m)
+{
+    if (!m)
+        return;
+    if (m->plan)
+        fftw_destroy_plan(m->plan);
+    fftw_free(m->buf);
+    fftw_free(m->lesum);
+    fftw_free(m->ramp);
+    free(m->pup);
+    free(m->screen);
+    free(m->t0);
+    free(m);
+}
+
+int stf_model_nbins(const stf_model *m) { return m ? m->dp + 1 : 0; }
+
+int stf_model_eval(stf_model *m, double d_r0, double *stf, double *le,
+                   double *t0)
+{
+    if (!m || !(d_r0 > 0))
+        return SL_EINVAL;
+    size_t n = (size_t)m->g * m->g;
+    int nb = m->dp + 1;
+    double *p2 = calloc(n, sizeof *p2), *l2 = malloc(n * sizeof *l2);
+    double *sr = malloc((size_t)nb * sizeof *sr);
+    if (!p2 || !l2 || !sr) {
+        free(p2), free(l2), free(sr);
+        return SL_ENOMEM;
+    }
+    memset(m->lesum, 0, n * sizeof *m->lesum);
+    /* phase scales as r0^(-5/6); r0 = dp / (D/r0) px */
+    double scale = pow(m->dp / d_r0, -5.0 / 6);
+    for (int r = 0; r < m->nreal; r++) {
+        transfer(m, m->screen + (size_t)r * m->npup, scale);
+        for (size_t k = 0; k < n; k++) {
+            double re = creal(m->buf[k]), im = cimag(m->buf[k]);
+            p2[k] += re * re + im * im;
+            m->lesum[k] += m->buf[k];
+        }
+    }
+    /* |mean|^2 is biased by var / nreal: the unbiased form */
+    double inv = 1.0 / m->nreal;
+    for (size_t k = 0; k < n; k++) {
+        double mean2 = creal(m->lesum[k]) * creal(m->lesum[k]) +
+                       cimag(m->lesum[k]) * cimag(m->lesum[k]);
+        mean2 *= inv * inv;
+        p2[k] *= inv;
+        l2[k] = mean2 - (p2[k] - mean2) / (m->nreal - 1);
+    }
+    if (stf)
+        radial(m, p2, stf);
+    if (le) {
+        radial(m, l2, sr);
+        memcpy(le, sr, (size_t)nb * sizeof *le);
+    }
+    if (t0)
+        memcpy(t0, m->t0, (size_t)nb * sizeof *t0);
+    free(p2), free(l2), free(sr);
+    return SL_OK;
+}
+
+/* Squared misfit of the model's eps at d_r0 to eps over 0 < i <= dp / 2,
+ * less a constant offset b in [0, 0.5] fitted with it: frames that are
+ * not independent (wind carries one screen across many of them) leave
+ * |<I>|^2 biased by <|I|^2> (1 / n_eff - 1 / n), a constant in the
+ * ratio.  40 frames of 10 m/s wind read eps ~0.1 where it is 0. */
+static double misfit(stf_model *m, const double *eps, double d_r0,
+                     double *stf, double *le, double *b_out)
+{
+    if (stf_model_eval(m, d_r0, stf, le, NULL) != SL_OK)
+        return INFINITY;
+    double num = 0, den = 0, s = 0;
+    for (int i = 1; i <= m->dp / 2; i++)
+        if (isfinite(eps[i]) && stf[i] > 0) {
+            double e = le[i] / stf[i];   /* eps - e = b (1 - e): least squares */
+            num += (eps[i] - e) * (1 - e);
+            den += (1 - e) * (1 - e);
+        }
+    double b = den > 0 ? fmin(fmax(num / den, 0), 0.5) : 0;
+    for (int i = 1; i <= m->dp / 2; i++)
+        if (isfinite(eps[i]) && stf[i] > 0) {
+            double d = eps[i] - (b + (1 - b) * le[i] / stf[i]);
+            s += d * d;
+        }
+    if (b_out)
+        *b_out = b;
+    return s;
+}
+
+int stf_model_fit(stf_model *m, const double *eps, double *d_r0, double *rms)
+{
+    if (!m || !eps || !d_r0)
+        return SL_EINVAL;
+    int nok = 0, nb = m->dp + 1;
+    for (int i = 1; i <= m->dp / 2; i++)
+        nok += isfinite(eps[i]);
+    if (nok < 4)
+        return SL_EDATA;
+    double *stf = malloc((size_t)nb * sizeof *stf), *le = malloc((size_t)nb * sizeof *le);
+    if (!stf || !le) {
+        free(stf), free(le);
+        return SL_ENOMEM;
+    }
+    /* A log grid over [1, 40], then golden section around its best. */
+    enum { NGRID = 13 };
+    double lo = log(1.0), hi = log(40.0), step = (hi - lo) / (NGRID - 1);
+    double best = INFINITY;
+    int ib = 0;
+    for (int i = 0; i < NGRID; i++) {
+        double c = misfit(m, eps, exp(lo + i * step), stf, le, NULL);
+        if (c < best)
+            best = c, ib = i;
+    }
+    double a = lo + (ib > 0 ? ib - 1 : 0) * step;
+    double b = lo + (ib < NGRID - 1 ? ib + 1 : NGRID - 1) * step;
+    const double gr = 0.5 * (sqrt(5.0) - 1);
+    double x1 = b - gr * (b - a), x2 = a + gr * (b - a);
+    double f1 = misfit(m, eps, exp(x1), stf, le, NULL), f2 = misfit(m, eps, exp(x2), stf, le, NULL);
+    for (int it = 0; it < 8; it++) {
+        if (f1 < f2) {
+            b = x2, x2 = x1, f2 = f1;
+            x1 = b - gr * (b - a);
+            f1 = misfit(m, eps, exp(x1), stf, le, NULL);
+        } else {
+            a = x1, x1 = x2, f1 = f2;
+            x2 = a + gr * (b - a);
+            f2 = misfit(m, eps, exp(x2), stf, le, NULL);
+        }
+    }
+    double xm = f1 < f2 ? x1 : x2, fm = f1 < f2 ? f1 : f2;
+    *d_r0 = fm <= best ? exp(xm) : exp(lo + ib * step);
+    if (rms)
+        *rms = sqrt(fmin(fm, best) / nok);
+    free(stf), free(le);
+    return SL_OK;
+}
+
+/* rho / rho_c of FFT-order pixel (i, j) on w x h, in bins of 1 / dp. */
+static double bin_pos(int i, int j, int w, int h, double rc_cyc, int nbins)
+{
+    int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
+    return hypot((double)p / w, (double)q / h) / rc_cyc * (nbins - 1);
+}
+
+void stf_spectral_ratio(const double *ps, const double *le, int w, int h,
+                        double rc_cyc, int nbins, double *eps)
+{
+    double *sp = calloc((size_t)nbins, sizeof *sp), *sl = calloc((size_t)nbins, sizeof *sl);
+    for (int b = 0; b < nbins; b++)
+        eps[b] = NAN;
+    if (!sp || !sl || !(rc_cyc > 0)) {
+        free(sp), free(sl);
+        return;
+    }
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            long b = lround(bin_pos(i, j, w, h, rc_cyc, nbins));
+            if (b < nbins) {
+                sp[b] += ps[(size_t)j * w + i];
+                sl[b] += le[(size_t)j * w + i];
+            }
+        }
+    for (int b = 0; b < nbins; b++)
+        if (sp[b] > 0)
+            eps[b] = sl[b] / sp[b];
+    free(sp), free(sl);
+}
+
+void stf_modulus(const double *ps, int w, int h, double rc_cyc,
+                 const double *stf, const double *t0, int nbins, double *mod)
+{
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            size_t k = (size_t)j * w + i;
+            double x = bin_pos(i, j, w, h, rc_cyc, nbins);
+            int b = (int)x;
+            if (b >= nbins - 1) {
+                mod[k] = 0;
+                continue;
+            }
+            double f = x - b;
+            double s = (1 - f) * stf[b] + f * stf[b + 1];
+            double t = (1 - f) * t0[b] + f * t0[b + 1];
+            mod[k] = s > 0 ? sqrt(fmax(ps[k], 0.0) / s) * t : 0;
+        }
+}

@@ -1,0 +1,177 @@
+/* test_stf.c - the modelled speckle transfer function against the
+ * analytic diffraction OTF of a disc and Korff's asymptote, the D/r0 fit
+ * as a round trip, the aligned long exposure of shifted frames, and the
+ * corrected modulus against the object it was built from. */
+#include <complex.h>
+#include <stdlib.h>
+
+#include "spectra/powspec.h"
+#include "spectra/stf.h"
+#include "tcheck.h"
+
+/* The diffraction OTF of a filled disc at nu = rho / rho_c. */
+static double disc_otf(double nu)
+{
+    if (nu >= 1)
+        return 0;
+    return 2 / M_PI * (acos(nu) - nu * sqrt(1 - nu * nu));
+}
+
+TEST(no_turbulence_is_diffraction)
+{
+    stf_model *m = stf_model_new(48, 8, 1, NULL);
+    CHECK(m, "model");
+    int nb = stf_model_nbins(m);
+    double stf[49], le[49], t0[49];
+    CHECK(nb == 49, "%d bins", nb);
+    /* D/r0 1e-3: phase rms ~1e-4 rad, the pupil is cophased */
+    CHECK(stf_model_eval(m, 1e-3, stf, le, t0) == SL_OK, "eval");
+    double worst = 0, worst2 = 0;
+    for (int i = 0; i < nb; i++) {
+        worst = fmax(worst, fabs(t0[i] - disc_otf(i / 48.0)));
+        worst2 = fmax(worst2, fabs(stf[i] - le[i]) + fabs(stf[i] - t0[i] * t0[i]) * (i < 40));
+    }
+    stf_model_free(m);
+    /* the pixelised disc of 48 px: its OTF within 0.02 of the analytic */
+    CHECK(worst < 0.02, "T0 off the disc's OTF by %g", worst);
+    /* cophased: every frame is the diffraction pattern; the ring means of
+     * T0^2 and of T0 squared differ only by the ring's spread */
+    CHECK(worst2 < 0.01, "STF != long exposure != T0^2 by %g", worst2);
+}
+
+/* Mean of STF / T0 over nu 0.4 .. 0.8, in units of 0.435 (r0/D)^2. */
+static double plateau(stf_model *m, double d_r0, double *spread)
+{
+    double stf[49], t0[49], lo = INFINITY, hi = 0, sum = 0;
+    int k = 0;
+    if (stf_model_eval(m, d_r0, stf, NULL, t0) != SL_OK)
+        return NAN;
+    for (int i = 19; i <= 38; i++, k++) {
+        double v = stf[i] / t0[i] / (0.435 / (d_r0 * d_r0));
+        sum += v, lo = fmin(lo, v), hi = fmax(hi, v);
+    }
+    *spread = hi / lo;
+    return sum / k;
+}
+
+TEST(korff_asymptote)
+{
+    /* Beyond the seeing disc the STF is kappa (r0/D)^2 T0 (Korff 1973):
+     * flat against T0 and scaling as (r0/D)^2.  The model's kappa is
+     * 1.4-1.6 x Korff's 0.435 at D/r0 4-24 and pupils of 48 and 96 px
+     * (a finite-D/r0 excess the asymptote leaves out); the correction
+     * fits D/r0 through the same model, so only the shape matters. */
+    stf_model *m = stf_model_new(48, 96, 2, NULL);
+    CHECK(m, "model");
+    double s8, s16, k8 = plateau(m, 8, &s8), k16 = plateau(m, 16, &s16);
+    double stf[49], le[49];
+    int rc = stf_model_eval(m, 8, stf, le, NULL);
+    stf_model_free(m);
+    CHECK(rc == SL_OK, "eval");
+    CHECK(s8 < 1.5 && s16 < 1.5, "STF / T0 not flat over nu 0.4-0.8: max/min %g, %g", s8, s16);
+    CHECK(fabs(k16 / k8 - 1) < 0.2, "plateau not (r0/D)^2: kappa %g at D/r0 8, %g at 16", k8, k16);
+    CHECK(k8 > 0.5 && k8 < 2, "plateau %g x Korff's", k8);
+    /* the long exposure is gone out there, and holds near 0 */
+    CHECK(le[30] < 0.05 * stf[30], "long exposure %g of STF %g at nu 0.6", le[30], stf[30]);
+    CHECK(le[1] > 0.9 * stf[1], "long exposure %g of STF %g at nu 0.02", le[1], stf[1]);
+}
+
+TEST(fit_round_trip)
+{
+    /* the spectral ratio of one model (its own screens) fitted by another */
+    stf_model *a = stf_model_new(32, 64, 3, NULL), *b = stf_model_new(32, 32, 4, NULL);
+    CHECK(a && b, "models");
+    double truth[] = {2.5, 5.5, 12};
+    for (int c = 0; c < 3; c++) {
+        double stf[33], le[33], eps[33], d_r0 = 0;
+        CHECK(stf_model_eval(a, truth[c], stf, le, NULL) == SL_OK, "eval");
+        for (int i = 0; i < 33; i++)
+            eps[i] = le[i] / stf[i];
+        double rms = 1;
+        CHECK(stf_model_fit(b, eps, &d_r0, &rms) == SL_OK, "fit");
+        CHECK(rms < 0.03, "rms misfit %g at D/r0 %g (the pipeline trusts < 0.045)", rms, truth[c]);
+        CHECK(fabs(d_r0 / truth[c] - 1) < 0.15, "D/r0 %g fitted as %g", truth[c], d_r0);
+    }
+    double eps[33];
+    for (int i = 0; i < 33; i++)
+        eps[i] = NAN;
+    double d;
+    CHECK(stf_model_fit(b, eps, &d, NULL) == SL_EDATA, "a fit on no data");
+    stf_model_free(a);
+    stf_model_free(b);
+}
+
+/* Frames of one object moved by whole pixels: the aligned long exposure
+ * keeps the object's power, the plain mean loses it. */
+TEST(aligned_long_exposure)
+{
+    enum { N = 32, F = 16 };
+    powspec_opts po;
+    powspec_opts_default(&po);
+    po.aligned = 1;
+    po.measure = 0;
+    powspec *p = powspec_new(N, N, &po, NULL);
+    float *fr = calloc(N * N, sizeof *fr);
+    double *ps = malloc(N * N * sizeof *ps), *le = malloc(N * N * sizeof *le);
+    CHECK(p && fr && ps && le, "alloc");
+    for (int k = 0; k < F; k++) {
+        memset(fr, 0, N * N * sizeof *fr);
+        int x = 10 + (k * 7) % 11, y = 9 + (k * 5) % 13;
+        fr[y * N + x] = 3;
+        fr[y * N + x + 2] = 1;   /* a binary, moved whole */
+        powspec_add(p, fr);
+    }
+    int rc1 = powspec_result(p, ps), rc2 = powspec_aligned_power(p, le);
+    double worst = 0;
+    for (int k = 0; k < N * N; k++)
+        worst = fmax(worst, fabs(le[k] / ps[k] - 1));
+    powspec_free(p);
+    free(fr), free(ps), free(le);
+    CHECK(rc1 == SL_OK && rc2 == SL_OK, "status %d %d", rc1, rc2);
+    CHECK(worst < 1e-9, "aligned |<I>|^2 / <|I|^2> off 1 by %g", worst);
+}
+
+/* ps = |O|^2 STF on a plane, with O a binary: the corrected modulus is
+ * |O| T0. */
+TEST(modulus_round_trip)
+{
+    enum { N = 96 };
+    stf_model *m = stf_model_new(40, 32, 5, NULL);
+    CHECK(m, "model");
+    int nb = stf_model_nbins(m);
+    double stf[41], t0[41];
+    CHECK(stf_model_eval(m, 6, stf, NULL, t0) == SL_OK, "eval");
+    stf_model_free(m);
+    double rc = 40.0 / N, worst = 0;
+    double *ps = malloc(N * N * sizeof *ps), *mod = malloc(N * N * sizeof *mod);
+    CHECK(ps && mod, "alloc");
+    for (int j = 0; j < N; j++)
+        for (int i = 0; i < N; i++) {
+            int p = i <= N / 2 ? i : i - N, q = j <= N / 2 ? j : j - N;
+            double nu = hypot(p, q) / 40.0;
+            double complex o = 1 + 0.4 * cexp(-2 * M_PI * I * (5.0 * p + 3.0 * q) / N);
+            int b = (int)(nu * 40);
+            double f = nu * 40 - b;
+            double s = b < nb - 1 ? (1 - f) * stf[b] + f * stf[b + 1] : 0;
+            ps[j * N + i] = creal(o * conj(o)) * s;
+        }
+    stf_modulus(ps, N, N, rc, stf, t0, nb, mod);
+    for (int j = 0; j < N; j++)
+        for (int i = 0; i < N; i++) {
+            int p = i <= N / 2 ? i : i - N, q = j <= N / 2 ? j : j - N;
+            double nu = hypot(p, q) / 40.0;
+            if (nu >= 0.98)
+                continue;
+            double complex o = 1 + 0.4 * cexp(-2 * M_PI * I * (5.0 * p + 3.0 * q) / N);
+            int b = (int)(nu * 40);
+            double f = nu * 40 - b;
+            double want = cabs(o) * ((1 - f) * t0[b] + f * t0[b + 1]);
+            worst = fmax(worst, fabs(mod[j * N + i] - want));
+        }
+    free(ps), free(mod);
+    CHECK(worst < 1e-9, "modulus off |O| T0 by %g", worst);
+}
+
+TC_MAIN(TC_CASE(no_turbulence_is_diffraction), TC_CASE(korff_asymptote),
+        TC_CASE(fit_round_trip), TC_CASE(aligned_long_exposure),
+        TC_CASE(modulus_round_trip))

@@ -412,6 +412,27 @@ free_all:
     return rc;
 }
 
+/* The point-source reference, checked against the object's frames s;
+ * closed again on failure. */
+static int open_reference(const pipeline_opts *o, stream *s, stream *ref,
+                          sl_err *err)
+{
+    const char *rp[] = {o->ref_path};
+    pipeline_opts ro = *o;
+    ro.progress = NULL; /* one bar: the object's frames */
+    int rc = stream_open(ref, rp, 1, &ro, err);
+    if (rc != SL_OK)
+        return rc;
+    if (ref->w != s->w || ref->h != s->h)
+        rc = sl_seterr(err, SL_EFORMAT, "reference %s is %dx%d, frames are %dx%d",
+                       o->ref_path, ref->w, ref->h, s->w, s->h);
+    else
+        rc = pipeline_check_data(o, o->ref_path, ref->w, ref->h, ref->n, err);
+    if (rc != SL_OK)
+        stream_close(ref);
+    return rc;
+}
+
 int pipeline_run(const char *const *paths, int npaths,
                  const pipeline_opts *o, pipeline_result *out, sl_err *err)
 {
@@ -424,21 +445,9 @@ int pipeline_run(const char *const *paths, int npaths,
         return rc;
     if ((rc = pipeline_check_data(o, paths[0], s.w, s.h, s.n, err)) != SL_OK)
         goto close_s;
-    if (o->ref_path) {
-        const char *rp[] = {o->ref_path};
-        pipeline_opts ro = *o;
-        ro.progress = NULL; /* one bar: the object's frames */
-        if ((rc = stream_open(&ref, rp, 1, &ro, err)) != SL_OK)
-            goto close_s;
-        refp = &ref;
-        if (ref.w != s.w || ref.h != s.h) {
-            rc = sl_seterr(err, SL_EFORMAT, "reference %s is %dx%d, frames "
-                           "are %dx%d", o->ref_path, ref.w, ref.h, s.w, s.h);
-            goto close_ref;
-        }
-        if ((rc = pipeline_check_data(o, o->ref_path, ref.w, ref.h, ref.n, err)) != SL_OK)
-            goto close_ref;
-    }
+    if (o->ref_path && (rc = open_reference(o, &s, &ref, err)) != SL_OK)
+        goto close_s;
+    refp = o->ref_path ? &ref : NULL;
     double photons, g;
     int phsrc;
     if ((rc = stream_photon_stats(&s, o, &photons, &g, &phsrc, err)) != SL_OK)

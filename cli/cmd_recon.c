@@ -88,6 +88,9 @@ static void parameters_json(JsonBuilder *b, const pipeline_opts *o,
     }
     cli_json_num(b, "PHOT", p->photons);
     cli_json_str(b, "PHSRC", pipeline_photon_source_name(p->photon_source));
+    cli_json_num(b, "RDN", p->read_noise_adu);
+    cli_json_str(b, "RDSRC", p->read_noise_source == PIPE_RDN_HEADER ? "header"
+                             : p->read_noise_source == PIPE_RDN_SKY ? "sky rms" : "none");
     cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
     json_builder_end_object(b);
 }

@@ -472,6 +472,7 @@ int pipeline_run(const char *const *paths, int npaths,
     rep->nframes_in = s.n;
     rep->photons = photons;
     rep->photon_source = phsrc;
+    rep->read_noise_adu = stream_read_noise(&s, photons, &rep->read_noise_source) / s.scale;
     rep->scale = s.scale;
     rc = eo.method == PIPE_DIRECT
              ? run_direct(&s, refp, &eo, photons, g, out->image, rep, &out->binary, err)

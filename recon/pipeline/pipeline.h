@@ -166,6 +166,10 @@ const char *pipeline_binary_source_name(int source);
 enum pipeline_photon_source {
     PIPE_PHOT_NONE = 0, PIPE_PHOT_OPTION, PIPE_PHOT_SIMPHOT, PIPE_PHOT_GAIN
 };
+/* Where the read noise of photon-count frames came from: none (the
+ * frames are not photon counts, or nothing says), the header (SIMRDN,
+ * RDNOISE), or the sky's temporal rms in the raw frames. */
+enum pipeline_rdn_source { PIPE_RDN_NONE = 0, PIPE_RDN_HEADER, PIPE_RDN_SKY };
 
 typedef struct pipeline_prep_report {   /* the cleaning (prep.h) */
     int on;                   /* frames were cleaned at all */
@@ -207,6 +211,8 @@ typedef struct pipeline_report {
     int nframes_in;           /* frames in the sequence */
     double photons;           /* per frame for the bias; 0 unknown */
     int photon_source;        /* enum pipeline_photon_source */
+    double read_noise_adu;    /* per pixel, for the photon bias; 0 none */
+    int read_noise_source;    /* enum pipeline_rdn_source */
     double scale;             /* frames x this (power of 2) for the sums */
     /* direct */
     int window;               /* POWSPEC_WIN_* */

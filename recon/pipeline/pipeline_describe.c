@@ -51,6 +51,12 @@ static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
     num(k, "RECPHOT", p->photons, "photons/frame for bias, 0 = unknown");
     str(k, "RECPHSRC", pipeline_photon_source_name(p->photon_source),
         "RECPHOT from: option, SIMPHOT, or GAIN and the flux");
+    if (p->photons > 0) {
+        static const char *rdn_names[] = {"none", "header", "sky rms"};
+        num(k, "RECRDN", p->read_noise_adu, "[adu] read noise for the photon bias");
+        str(k, "RECRDSRC", rdn_names[p->read_noise_source % 3],
+            "RECRDN from: SIMRDN/RDNOISE, or the sky's temporal rms");
+    }
     str(k, "RECREF", o->ref_path ? o->ref_path : "none", "reference (point-source) sequence");
     if (p->scale != 1.0)
         num(k, "RECSCALE", p->scale, "frames x this (power of 2) for the float sums");

@@ -69,12 +69,15 @@ void stream_expect_passes(stream *s, int passes);
  * both 0 when unknown or when the caller says the frames are not photon
  * counts.  *src says where they came from (PHOT_*, header RECPHSRC).  A
  * photon count without a gain leaves g = 0 (sequence_powspec measures it).
- * stream_read_noise_adu: the read noise per pixel in s's scaled units, 0
- * when unknown or when the frames are not photon counts. */
+ * stream_read_noise_adu: the read noise per pixel in s's scaled units
+ * (the header's, else the sky's temporal rms), 0 when unknown or when the
+ * frames are not photon counts; stream_read_noise also says which
+ * (PIPE_RDN_*). */
 enum { PHOT_NONE, PHOT_OPTION, PHOT_SIMPHOT, PHOT_GAIN };
 int stream_photon_stats(stream *s, const pipeline_opts *o, double *photons,
                         double *g, int *src, sl_err *err);
 double stream_read_noise_adu(const stream *s, double photons);
+double stream_read_noise(const stream *s, double photons, int *source);
 
 /* The PIPE_SKIP_* bits a run applies (o->skips, or its default). */
 int skip_effective(const pipeline_opts *o);

@@ -136,6 +136,53 @@ TEST(amateur_close_pair_8_bit)
     blind_remove(&c);
 }
 
+/* A camera cube whose user knows the photons and the gain but not the
+ * read noise (3 e- on 1e4 photons of 128^2: 15x the photon bias in the
+ * power spectrum's floor).  The read noise comes from the sky's temporal
+ * rms, the result says so, and knowing more does not make it worse. */
+TEST(known_gain_unknown_read_noise)
+{
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.scene = "binary";
+    s.width = s.height = 128;
+    s.sep_lod = 6, s.pa_deg = 57, s.dm_mag = 1;
+    s.photons = 1e4, s.gain_e_per_adu = 2, s.read_noise_e = 3;
+    s.bias_adu = 100, s.adc_bits = 12;
+    s.blind = 1;
+    blind_cube c;
+    sl_err e;
+    CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
+    double cc[2], rdn = 0;
+    int src = -1;
+    pipeline_binary b[2];
+    for (int known = 0; known < 2 && !t->failed; known++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = PIPE_DIRECT, o.closure_binary = 1, o.fftw_measure = 0;
+        if (known)
+            o.photons_per_frame = 1e4, o.adu_per_photon = 0.5;
+        pipeline_result r;
+        const char *paths[] = {c.path};
+        CHECK(pipeline_run(paths, 1, &o, &r, &e) == SL_OK, "%s", e.msg);
+        bench_score sc;
+        int rc = bench_score_image(r.image, &c.truth, BENCH_HP_SIGMA_PX, &sc, &e);
+        cc[known] = sc.c, b[known] = r.binary;
+        if (known)
+            rdn = r.report.read_noise_adu, src = r.report.read_noise_source;
+        pipeline_result_clear(&r);
+        CHECK(rc == SL_OK, "%s", e.msg);
+    }
+    blind_remove(&c);
+    CHECK(!t->failed, "%s", t->msg);
+    CHECK(src == PIPE_RDN_SKY && fabs(rdn / 1.5 - 1) < 0.1,
+          "read noise %g adu from source %d; truth 1.5 adu from the sky", rdn, src);
+    CHECK(cc[1] >= cc[0] - 0.01, "c %.4f with the gain known, %.4f blind", cc[1], cc[0]);
+    CHECK(b[1].status == PIPE_BIN_MEASURED && fabs(b[1].dm_mag - 1) < 0.1,
+          "with the gain known: binary %s, dm %.3f", pipeline_binary_status_name(b[1].status),
+          b[1].dm_mag);
+}
+
 /* Direct on a noiseless six-star group through the mask, with the full
  * screen across each hole and with pistons only: c >= 0.95 either way
  * (pistons leave the recursion astray; the refinement its misfit asks
@@ -322,5 +369,6 @@ TEST(every_promised_keyword_is_written)
 
 TC_MAIN(TC_CASE(camera_cube_with_hot_pixels_every_method), TC_CASE(amateur_close_pair_8_bit),
         TC_CASE(filled_pupil_without_reference),
+        TC_CASE(known_gain_unknown_read_noise),
         TC_CASE(six_star_either_phase_model), TC_CASE(a_point_source_is_unresolved),
         TC_CASE(a258_methods_agree_or_say_so), TC_CASE(every_promised_keyword_is_written))

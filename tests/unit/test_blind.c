@@ -61,6 +61,19 @@ static int measure(const char *path, int method, pipeline_binary *b,
     return SL_OK;
 }
 
+/* The bench's camera baseline: a 128^2 binary at 6 lambda/D, PA 57, dm 1,
+ * 2 e-/ADU, 3 e- read noise, bias 100 ADU, 12 bits, written blind. */
+static void camera_binary(bench_sim *s, double photons)
+{
+    bench_sim_defaults(s);
+    s->scene = "binary";
+    s->width = s->height = 128;
+    s->sep_lod = 6, s->pa_deg = 57, s->dm_mag = 1;
+    s->photons = photons, s->gain_e_per_adu = 2, s->read_noise_e = 3;
+    s->bias_adu = 100, s->adc_bits = 12;
+    s->blind = 1;
+}
+
 static double pa_err(double pa, double truth)
 {
     double d = fmod(pa - truth + 540, 360) - 180;
@@ -143,13 +156,7 @@ TEST(amateur_close_pair_8_bit)
 TEST(known_gain_unknown_read_noise)
 {
     bench_sim s;
-    bench_sim_defaults(&s);
-    s.scene = "binary";
-    s.width = s.height = 128;
-    s.sep_lod = 6, s.pa_deg = 57, s.dm_mag = 1;
-    s.photons = 1e4, s.gain_e_per_adu = 2, s.read_noise_e = 3;
-    s.bias_adu = 100, s.adc_bits = 12;
-    s.blind = 1;
+    camera_binary(&s, 1e4);
     blind_cube c;
     sl_err e;
     CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
@@ -224,14 +231,8 @@ TEST(six_star_either_phase_model)
 TEST(filled_pupil_without_reference)
 {
     bench_sim s;
-    bench_sim_defaults(&s);
-    s.scene = "binary";
-    s.width = s.height = 128;
-    s.sep_lod = 6, s.pa_deg = 57, s.dm_mag = 1;
-    s.photons = 2e4, s.gain_e_per_adu = 2, s.read_noise_e = 3;
-    s.bias_adu = 100, s.adc_bits = 12;
+    camera_binary(&s, 2e4);
     s.mask = "full";
-    s.blind = 1;
     blind_cube c;
     sl_err e;
     CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);

@@ -409,6 +409,8 @@ static void wisdom(worker *w, int save)
     if (!w->cfg->fftw_measure)
         return;
     char *path = g_build_filename(w->cfg->data_dir, "fftw-wisdom", NULL);
+    if (!save)
+        wisdom_plan_limit(WISDOM_PLAN_LIMIT_S);
     if ((save ? wisdom_save(path, &e) : wisdom_load(path, NULL, &e)) != SL_OK)
         g_warning("%s", e.msg);
     g_free(path);

@@ -85,3 +85,9 @@ int wisdom_save(const char *path, sl_err *err)
     }
     return SL_OK;
 }
+
+void wisdom_plan_limit(double seconds)
+{
+    fftw_set_timelimit(seconds);
+    fftwf_set_timelimit(seconds);
+}

@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "base/version.h"
+#include "camlink.h"
 #include "io/cube.h"
 #include "cubefile.h"
 #include "framelog.h"
@@ -28,12 +29,9 @@
 #define POP_SLICE_MS 200        /* abort and loss are checked this often */
 #define FLUSH_US 100000         /* cube flush + progress event period */
 #define CATALOG_US 1000000      /* catalogue progress period */
-/* Keep trying to get the camera this long past its heartbeat timeout. */
-#define OPEN_RETRY_EXTRA_US 5000000
 /* Control lost mid-run is tried back this many times, each bounded. */
 #define MAX_RECONNECTS 3
 #define RECONNECT_MS 3000
-#define RETRY_PAUSE_US 500000
 
 /* The catalogue's progress row during acquisition, written by a helper
  * thread with its own catalogue handle, never by the frame loop.  Why:
@@ -184,69 +182,6 @@ static void run_stats(const acq *a, camera_stats *out)
     out->reconnects = since(n.reconnects, b->reconnects);
 }
 
-static int configure(camera *c, const config *cfg, const runner_spec *sp, camera_config *cf)
-{
-    int rc = camera_set_pixel_format(c, camera_pixfmt_parse(cfg->pixel_format));
-    if (rc == SL_OK && cfg->roi[2] > 0)
-        rc = camera_set_roi(c, cfg->roi[0], cfg->roi[1], cfg->roi[2], cfg->roi[3]);
-    if (rc == SL_OK)
-        rc = camera_set_exposure_us(c, sp->exposure_us);
-    if (rc == SL_OK && isfinite(cfg->frame_rate_hz))
-        rc = camera_set_frame_rate_hz(c, cfg->frame_rate_hz);
-    if (rc == SL_OK)
-        rc = camera_set_trigger(c, CAMERA_TRIGGER_FREE_RUN);
-    if (rc == SL_OK)
-        rc = camera_set_heartbeat_ms(c, cfg->heartbeat_timeout_ms);
-    if (rc == SL_OK)
-        rc = camera_config_get(c, cf);
-    return rc;
-}
-
-/* Open the camera if needed and configure it.  A handle that fails (the
- * camera was restarted or lost since the last run) is replaced by a
- * fresh open, retried for up to [camera] heartbeat_timeout_ms +
- * OPEN_RETRY_EXTRA_US:
- *  - a controller that died without letting go (the previous daemon,
- *    SIGKILLed) keeps the camera's control privilege until its heartbeat
- *    times out, and streaming is refused until then;
- *  - a camera whose previous controller died mid-acquisition may still be
- *    "acquiring" towards that controller's port: a fresh handle is primed
- *    with one start/stop (AcquisitionStop) so the real start streams to
- *    this daemon (observed with Aravis's fake GigE camera).
- * An absent camera costs ~2.5 s per attempt, so a run fails after at
- * most that bound + 2.5 s. */
-static int camera_ready(runner *r, acq *a, sl_err *e)
-{
-    gint64 end = g_get_monotonic_time() + r->cfg->heartbeat_timeout_ms * 1000LL +
-                 OPEN_RETRY_EXTRA_US;
-    for (int attempt = 0;; attempt++) {
-        int fresh = !r->cam || r->cam_fresh, rc = SL_OK;
-        if (attempt > 0)
-            g_usleep(RETRY_PAUSE_US);
-        if (!r->cam && camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address,
-                                   e) != SL_OK) {
-            r->cam = NULL;
-            rc = SL_EIO;
-        } else if (configure(r->cam, r->cfg, a->sp, &a->cf) != SL_OK ||
-                   camera_info_get(r->cam, &a->info) != SL_OK ||
-                   (fresh && (camera_start(r->cam, 2) != SL_OK || camera_stop(r->cam) != SL_OK))) {
-            sl_seterr(e, SL_EIO, "%s", camera_errmsg(r->cam));
-            camera_close(r->cam);
-            r->cam = NULL;
-            rc = SL_EIO;
-        }
-        if (rc == SL_OK) {
-            r->cam_fresh = 0;
-            runner_note_camera(r, 1, &a->info, NULL);
-            return SL_OK;
-        }
-        runner_note_camera(r, 0, NULL, e->msg);
-        if (g_get_monotonic_time() >= end || runner_aborting(r))
-            return rc;
-        g_message("camera: %s; retrying", e->msg);
-    }
-}
-
 static void fill_meta(acq *a, cube_meta *m)
 {
     const runner_spec *sp = a->sp;
@@ -344,6 +279,19 @@ static int take_camera_back(acq *a)
     return rc;
 }
 
+/* The camera can go between camlink_ready and here (the cube's files come
+ * first): a stream it refuses is taken back as mid-run, within the run's
+ * MAX_RECONNECTS.  A refused setting (SL_EINVAL, SL_ERANGE) is not. */
+static int start_stream(acq *a)
+{
+    camera *c = a->r->cam;
+    int rc = camera_start(c, a->r->cfg->buffers);
+    while (rc != SL_OK && rc != SL_EINVAL && rc != SL_ERANGE && a->reconnects < MAX_RECONNECTS &&
+           take_camera_back(a) == SL_OK)
+        rc = camera_start(c, a->r->cfg->buffers);
+    return rc;
+}
+
 /* The frame loop.  Returns how it ended, with the reason. */
 static acq_end stream(acq *a, char *reason, size_t rlen)
 {
@@ -354,7 +302,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
     int max_fail = max_failed(r, sp);
     gint64 t_frame = g_get_monotonic_time(), t_db = t_frame;
     sl_err e = {0};
-    if (camera_start(r->cam, r->cfg->buffers) != SL_OK) {
+    if (start_stream(a) != SL_OK) {
         snprintf(reason, rlen, "%s", camera_errmsg(r->cam));
         return ACQ_FAILED;
     }
@@ -516,7 +464,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     cube_meta meta;
     acq_end end = ACQ_FAILED;
     *r0_m = NAN;
-    if (camera_ready(r, &a, &e) != SL_OK) {
+    if (camlink_ready(r, sp, &a.cf, &a.info, &e) != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);
         runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
         return ACQ_FAILED;

@@ -3,16 +3,18 @@
 #define _GNU_SOURCE
 #include "runner_int.h"
 
+#include "camlink.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #define SETTLE_SLICE_US 50000
-/* While idle with a stage connection open, it is checked this often (one
- * poll() on the socket, nothing sent): a stage restarted meanwhile is
- * then reported not connected by `status`, and the next run starts on a
- * new connection. */
-#define STAGE_CHECK_US 1000000
+/* While idle, the devices are checked this often.  A stage connection
+ * open: one poll() on the socket, nothing sent; a stage restarted
+ * meanwhile is then reported not connected by `status`, and the next run
+ * starts on a new connection.  The camera: camlink_idle (camlink.h). */
+#define IDLE_CHECK_US 1000000
 
 /* ---- thread-side helpers ------------------------------------------------ */
 
@@ -92,7 +94,10 @@ static void note_stage(runner *r, const char *error)
 /* Idle: has the stage closed the connection (restarted, powered off)? */
 static void check_stage(runner *r)
 {
-    if (!r->stg || stage_connected(r->stg))
+    g_mutex_lock(&r->mu);
+    int was = r->st.stage_connected;   /* said once, not at every tick */
+    g_mutex_unlock(&r->mu);
+    if (!was || !r->stg || stage_connected(r->stg))
         return;
     g_message("stage %s: connection closed by the stage", stage_label(r->stg));
     g_mutex_lock(&r->mu);
@@ -265,30 +270,14 @@ static void answer_aborts(runner *r, const char *uuid)
 static gpointer thread_main(gpointer data)
 {
     runner *r = data;
-    sl_err e = {0};
-    camera_info info;
-    /* Know the camera before the first run (status, devices). */
-    if (camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address, &e) == SL_OK &&
-        camera_info_get(r->cam, &info) == SL_OK) {
-        runner_note_camera(r, 1, &info, NULL);
-        r->cam_fresh = 1;
-        g_message("camera %s: %s %s, serial %s", r->cfg->camera_address, info.vendor,
-                  info.model, info.serial);
-    } else {
-        runner_note_camera(r, 0, NULL, r->cam ? camera_errmsg(r->cam) : e.msg);
-        g_message("camera not available yet: %s", r->cam ? camera_errmsg(r->cam) : e.msg);
-        camera_close(r->cam);
-        r->cam = NULL;
-    }
+    camlink_open(r);   /* know the camera before the first run (status, devices) */
     for (;;) {
         g_mutex_lock(&r->mu);
         while (!r->stopping && g_queue_is_empty(&r->queue)) {
-            if (!r->st.stage_connected) {
-                g_cond_wait(&r->cv, &r->mu);
-            } else if (!g_cond_wait_until(&r->cv, &r->mu,
-                                          g_get_monotonic_time() + STAGE_CHECK_US)) {
+            if (!g_cond_wait_until(&r->cv, &r->mu, g_get_monotonic_time() + IDLE_CHECK_US)) {
                 g_mutex_unlock(&r->mu);
                 check_stage(r);
+                camlink_idle(r);
                 g_mutex_lock(&r->mu);
             }
         }

@@ -18,6 +18,8 @@ struct runner {
     stage *stg;
     camera *cam;
     int cam_fresh;             /* opened but never streamed: prime it */
+    gint64 cam_next_try_us;    /* idle, no camera: reopen from then (camlink.c) */
+    gint64 cam_retry_us;       /* the wait before that try */
     GThread *th;
     /* Shared, under mu. */
     GMutex mu;

@@ -394,6 +394,16 @@ int camera_heartbeat_ms(camera *c, int *ms)
     return c->be->get_heartbeat_ms(c->st, ms, &c->err);
 }
 
+int camera_check(camera *c)
+{
+    return c->be->check(c->st, 0, &c->err);
+}
+
+int camera_probe(camera *c)
+{
+    return c->be->check(c->st, 1, &c->err);
+}
+
 int camera_reconnect(camera *c, int timeout_ms)
 {
     int was_started = c->started;

@@ -181,6 +181,10 @@ typedef struct camera_backend {
      * from it; SL_OK and *ms = 0 when the transport has no heartbeat. */
     int (*set_heartbeat_ms)(void *st, int ms, sl_err *err);
     int (*get_heartbeat_ms)(void *st, int *ms, sl_err *err);
+    /* SL_OK while this host controls the camera.  probe 0: from what the
+     * transport's keep-alive last saw, no traffic; probe 1: ask the camera
+     * (one control round trip). */
+    int (*check)(void *st, int probe, sl_err *err);
 } camera_backend;
 
 extern const camera_backend camera_backend_aravis;
@@ -230,6 +234,18 @@ int camera_trigger_software(camera *c);
  * heartbeat (USB3 Vision) accepts it and reads 0. */
 int camera_set_heartbeat_ms(camera *c, int ms);
 int camera_heartbeat_ms(camera *c, int *ms);
+
+/* Does this host still control the camera?  camera_check sends nothing:
+ * it reports what the heartbeat last saw (GigE Vision: a camera gone for
+ * ~5 s, or one that restarted and names no controller, is CAMERA_ELOST
+ * within a heartbeat period, 1 s), so it suits an idle loop.  camera_probe
+ * asks the camera (one read of its control privilege; ~2.5 s when it does
+ * not answer): a camera restarted since the last heartbeat is CAMERA_ELOST
+ * at once, which is what a run's start needs.  SL_OK, CAMERA_ELOST (take
+ * it again: camera_reconnect or a new handle), or the read's error.  A
+ * transport without a control privilege (USB3 Vision) is SL_OK. */
+int camera_check(camera *c);
+int camera_probe(camera *c);
 
 /* Start streaming into a pool of nbuffers buffers (2..1024; 0 = 16). */
 int camera_start(camera *c, int nbuffers);

@@ -445,20 +445,58 @@ static int arv_set_heartbeat_ms(void *st, int ms, sl_err *err)
     return ge ? arvcam_fail(err, a, "set the heartbeat timeout", ge) : SL_OK;
 }
 
-static int arv_get_heartbeat_ms(void *st, int *ms, sl_err *err)
+/* A GigE Vision bootstrap register; *v = 0 and SL_OK on a USB3 Vision
+ * camera, which has none of them. */
+static int gv_read(arvcam *a, guint32 reg, guint32 *v, const char *doing, sl_err *err)
 {
-    arvcam *a = st;
     GError *ge = NULL;
-    guint32 v = 0;
-    *ms = 0;
+    *v = 0;
     if (g_atomic_int_get(&a->lost))
         return arvcam_lost(err, a);
     if (!arv_camera_is_gv_device(a->cam))
         return SL_OK;
-    arv_device_read_register(a->dev, GV_HEARTBEAT_TIMEOUT_REG, &v, &ge);
-    if (ge)
-        return arvcam_fail(err, a, "read the heartbeat timeout", ge);
+    arv_device_read_register(a->dev, reg, v, &ge);
+    return ge ? arvcam_fail(err, a, doing, ge) : SL_OK;
+}
+
+static int arv_get_heartbeat_ms(void *st, int *ms, sl_err *err)
+{
+    guint32 v = 0;
+    int rc = gv_read(st, GV_HEARTBEAT_TIMEOUT_REG, &v, "read the heartbeat timeout", err);
     *ms = (int)v;
+    return rc;
+}
+
+/* GigE Vision's bootstrap register Control Channel Privilege: bit 1
+ * control, bit 0 exclusive; a camera that restarted (or whose heartbeat
+ * timeout ran out) reads 0.  The heartbeat thread reads the same. */
+#define GV_CCP_REG 0x0A00
+#define GV_CCP_HELD 0x3u
+
+/* Aravis clears its controller flag when the heartbeat sees the control
+ * go, and never sets it when the open could not take control (another
+ * host holds it): either way streaming would be refused. */
+static int arv_check(void *st, int probe, sl_err *err)
+{
+    arvcam *a = st;
+    guint32 v = 0;
+    int rc;
+    if (g_atomic_int_get(&a->lost))
+        return arvcam_lost(err, a);
+    if (!arv_camera_is_gv_device(a->cam))
+        return SL_OK;
+    if (!arv_gv_device_is_controller(ARV_GV_DEVICE(a->dev)))
+        return sl_seterr(err, CAMERA_ELOST, "camera %s: this host does not control the "
+                         "camera (another application does, or it restarted)", a->target);
+    if (!probe)
+        return SL_OK;
+    if ((rc = gv_read(a, GV_CCP_REG, &v, "read the control privilege", err)) != SL_OK)
+        return rc;
+    if (!(v & GV_CCP_HELD)) {
+        g_atomic_int_set(&a->lost, 1);   /* as the heartbeat would, a period later */
+        return sl_seterr(err, CAMERA_ELOST, "camera %s: the camera names no controller "
+                         "(it restarted, or dropped this host)", a->target);
+    }
     return SL_OK;
 }
 
@@ -486,4 +524,5 @@ const camera_backend camera_backend_aravis = {
     .reconnect = arv_reconnect,
     .set_heartbeat_ms = arv_set_heartbeat_ms,
     .get_heartbeat_ms = arv_get_heartbeat_ms,
+    .check = arv_check,
 };

@@ -232,22 +232,6 @@ static int camera_with_dm(bench *b, dc *c, const char *dm)
     return bench_start_camera(b) == 0 && bench_wait_camera(b, c, 20) == 0 ? 0 : -1;
 }
 
-/* run_done for the first run after a camera restart.  A known defect,
- * not what this test is about: the daemon does not notice a camera that
- * goes while it is idle, and the first run's stream can then be refused
- * ("another application controls the camera", about 1 run in 6 here)
- * before the mid-run recovery applies; that run fails whole, with that
- * reason, and the next one works.  Anything else is a failure. */
-static int run_done_after_restart(bench *b, dc *c, const char *args, char out[40])
-{
-    if (run_done(b, c, args, out) == 0)
-        return 0;
-    JsonNode *r = run_info(b, c, out);
-    if (!r || !has(js(r, "run.exit_reason"), "another application controls the camera"))
-        return -1;
-    return run_done(b, c, args, out);
-}
-
 /* sep_px, pa_deg, dm_mag of `specklab recon cube --ref ref ... --json`. */
 static int cli_ref_binary(const char *cube, const char *ref, const char *dir, double m[3])
 {
@@ -278,12 +262,12 @@ BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
     CHECK(c && bench_wait_camera(b, c, 20) == 0, "no daemon or no camera");
     keep(b, dc_call(c, "subscribe", NULL, 5));
     CHECK(camera_with_dm(b, c, "15") == 0, "the camera with the companion off");
-    CHECK(run_done_after_restart(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
-                                 "\"kind\": \"calibrator\"}", cal) == 0, "calibrator run");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
+                   "\"kind\": \"calibrator\"}", cal) == 0, "calibrator run");
     CHECK(camera_with_dm(b, c, "") == 0, "the camera with the companion on");
     /* its automatic reconstruction after acquisition takes the calibrator */
-    CHECK(run_done_after_restart(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
-                                 "\"reconstruct\": \"direct\"}", sci) == 0, "science run");
+    CHECK(run_done(b, c, "{\"screen\": 1, \"mask\": 1, \"frames\": 60, "
+                   "\"reconstruct\": \"direct\"}", sci) == 0, "science run");
     JsonNode *auto_rec = run_info(b, c, sci);
     CHECK(auto_rec && has(js(auto_rec, "reconstructions.0.params.ref.run"), cal),
           "the automatic reconstruction's params: %s",

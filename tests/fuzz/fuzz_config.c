@@ -15,6 +15,8 @@
  *     distinct slots in 0..15 (sorted) and distinct plain names that
  *     config_*_find finds by name and by slot, absolute canonical paths,
  *     a known reconstruction method;
+ *   - [stage]'s serial keys are used as written: parity (N, E or O in
+ *     either case, default E) and device;
  *   - the overrides: data_dir is the override, socket the override, and
  *     the catalogue follows the data directory unless the file named it;
  *   - no leak (libFuzzer's per-input leak check).
@@ -114,6 +116,26 @@ static void check_values(const config *c, const char *path)
             "daemon values", path);
 }
 
+/* [stage]'s serial line (the RTU backend's): what an accepted file says
+ * is what the daemon opens the port with, never a default in silence. */
+static void check_serial(GKeyFile *kf, const config *c, const char *path)
+{
+    require(c->stage_parity && strchr("NEO", c->stage_parity), "stage parity", path);
+    gchar *p = g_key_file_get_string(kf, "stage", "parity", NULL);
+    if (p) {
+        g_strstrip(p);
+        require(strlen(p) == 1 && g_ascii_toupper(p[0]) == c->stage_parity,
+                "parity as written", p);
+    } else {
+        require(c->stage_parity == 'E', "parity default E", path);
+    }
+    g_free(p);
+    gchar *d = g_key_file_get_string(kf, "stage", "device", NULL);
+    if (d)
+        require(!strcmp(g_strstrip(d), c->stage_device), "device as written", d);
+    g_free(d);
+}
+
 /* A refusal names the file or a group; a parse error names the file. */
 static void check_refusal(int rc, const sl_err *e, GKeyFile *kf, int parsed, const char *path)
 {
@@ -178,6 +200,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         require(!unreadable_key(kf), "a key that cannot be read fell back to its default",
                 path);
         check_values(&c, path);
+        check_serial(kf, &c, path);
         gchar *own = g_key_file_get_string(kf, "paths", "catalog", NULL);
         int own_catalog = own && *g_strstrip(own);
         char *catalog = g_strdup(c.catalog);

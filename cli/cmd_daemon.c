@@ -232,6 +232,9 @@ static void print_status(const char *path, JsonObject *st, JsonObject *dev)
            yesno(stg, "connected"));
     if (dcmd_str(stg, "error"))
         printf("    error: %s\n", dcmd_str(stg, "error"));
+    if (dcmd_int(stg, "rejected_replies", 0) > 0)
+        printf("    line: %lld damaged replies rejected (CRC, cut short) and asked again\n",
+               (long long)dcmd_int(stg, "rejected_replies", 0));
     JsonArray *wheels = dcmd_arr(stg, "wheels");
     for (guint i = 0; wheels && i < json_array_get_length(wheels); i++) {
         JsonObject *w = json_array_get_object_element(wheels, i);

@@ -39,6 +39,8 @@ typedef struct daemon_ctx {
     worker *wk;
     gint64 started_us;   /* g_get_monotonic_time at start */
     int pending_tasks;   /* `devices` queries in flight */
+    unsigned stage_rejected; /* damaged replies the `devices` queries' stage
+                              * handles rejected (the runner counts its own) */
     char web_url[128];   /* the live page's address (a copy: the page
                           * stops before the socket); "": no page */
 } daemon_ctx;

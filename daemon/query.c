@@ -92,6 +92,7 @@ char *cmd_status(request *rq)
     proto_add_str(b, "address", addr);
     proto_add_bool(b, "connected", rs.stage_connected);
     proto_add_str(b, "error", rs.stage_error[0] ? rs.stage_error : NULL);
+    proto_add_int(b, "rejected_replies", rs.stage_rejected + d->stage_rejected);
     json_builder_end_object(b);
     proto_add_str(b, "catalog", d->cfg->catalog);
     proto_add_str(b, "data_dir", d->cfg->data_dir);
@@ -111,6 +112,7 @@ typedef struct devq {
     proto_req q;
     stage_wheel_status ws[STAGE_NWHEELS];
     int known, connected;
+    unsigned rejected;
     char error[SL_ERRMSG_MAX];
 } devq;
 
@@ -142,6 +144,7 @@ static void devices_thread(GTask *task, gpointer src, gpointer data, GCancellabl
                 snprintf(v->error, sizeof v->error, "%s", stage_errmsg(s));
             }
         v->connected = stage_connected(s);
+        v->rejected = stage_rejected_replies(s);
         stage_free(s);
     }
     g_task_return_boolean(task, TRUE);
@@ -155,6 +158,7 @@ static void devices_done(GObject *src, GAsyncResult *res, gpointer data)
     char addr[160];
     (void)src, (void)res;
     runner_status_get(d->run, &rs);
+    d->stage_rejected += v->rejected;
     JsonBuilder *b = json_builder_new();
     json_builder_begin_object(b);
     add_camera(b, d->cfg, &rs);
@@ -164,6 +168,7 @@ static void devices_done(GObject *src, GAsyncResult *res, gpointer data)
     proto_add_str(b, "address", addr);
     proto_add_bool(b, "connected", v->known);
     proto_add_str(b, "error", v->error[0] ? v->error : NULL);
+    proto_add_int(b, "rejected_replies", rs.stage_rejected + d->stage_rejected);
     add_wheels(b, v->ws, v->known);
     json_builder_end_object(b);
     json_builder_end_object(b);

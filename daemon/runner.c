@@ -83,6 +83,7 @@ static void note_stage(runner *r, const char *error)
         ok = stage_status(r->stg, w, &ws[w]) == SL_OK;
     g_mutex_lock(&r->mu);
     r->st.stage_connected = stage_connected(r->stg);
+    r->st.stage_rejected = stage_rejected_replies(r->stg);
     if (ok) {
         memcpy(r->st.wheels, ws, sizeof ws);
         r->st.stage_known = 1;
@@ -96,6 +97,8 @@ static void check_stage(runner *r)
 {
     g_mutex_lock(&r->mu);
     int was = r->st.stage_connected;   /* said once, not at every tick */
+    if (r->stg)
+        r->st.stage_rejected = stage_rejected_replies(r->stg);
     g_mutex_unlock(&r->mu);
     if (!was || !r->stg || stage_connected(r->stg))
         return;

@@ -62,6 +62,8 @@ typedef struct runner_status {
     int stage_connected, stage_known;
     stage_wheel_status wheels[STAGE_NWHEELS];
     char stage_error[256];
+    unsigned stage_rejected;              /* replies the line damaged (rtu;
+                                           * stage_rejected_replies) */
 } runner_status;
 
 enum { RUNNER_NOT_HERE = 0, RUNNER_DEQUEUED = 1, RUNNER_ABORTING = 2 };

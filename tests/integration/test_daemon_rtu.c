@@ -5,7 +5,8 @@
  *                  corrupting 4 replies and cutting 4 short while they
  *                  move the wheels: both runs done, every damaged reply
  *                  used up (the driver saw and survived each), the frames
- *                  all in the cubes.
+ *                  all in the cubes; `status` counts exactly the 8
+ *                  rejected replies and `specklab daemon status` says so.
  */
 #include "daemon_fx.h"
 #include "matrix_fx.h"
@@ -57,6 +58,17 @@ static void binary_bench_over_rtu_body(tc *t, bench *b)
     int noise = fault_left(b, FAKE_REG_LINE_NOISE), drop = fault_left(b, FAKE_REG_LINE_DROP);
     CHECK(noise == 0 && drop == 0, "damaged replies left unused: %d corrupted, %d cut short",
           noise, drop);
+    /* Each damaged reply was rejected once (a request the line damaged
+     * would be a timeout, not a rejection: none here). */
+    JsonNode *r = keep(b, dc_call(c, "status", NULL, 5));
+    CHECK(jok(r) && ji(r, "result.stage.rejected_replies") == 8,
+          "status's rejected replies (want the 8 the line damaged): %s", jtext(r));
+    char bin[PATH_MAX], out[4096];
+    fx_bin(bin, sizeof bin, "specklab");
+    char *argv[] = {bin, "daemon", "status", "--socket", b->sock, NULL};
+    int rc = fx_run(argv, NULL, out, sizeof out, 20);
+    CHECK(rc == 0 && has(out, "line: 8 damaged replies rejected"),
+          "specklab daemon status (exit %d):\n%s", rc, out);
 }
 
 static void binary_bench_over_rtu_run(tc *t)

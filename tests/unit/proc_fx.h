@@ -253,6 +253,30 @@ static inline int fx_stop(fx_proc *p, int sig, double limit_s)
     return rc;
 }
 
+/* Run argv to its end within limit_s (then SIGKILL), stderr to errlog as
+ * fx_spawn; its stdout in out (NUL-ended, cut at n).  The exit status, -1
+ * when it could not start or was killed. */
+static inline int fx_run(char *const argv[], const char *errlog, char *out, size_t n,
+                         double limit_s)
+{
+    fx_proc p;
+    size_t len = 0;
+    out[0] = 0;
+    if (fx_spawn(&p, argv, errlog, NULL, NULL) != 0)
+        return -1;
+    double end = fx_now() + limit_s;
+    for (;;) {
+        struct pollfd pf = {p.out, POLLIN, 0};
+        if (fx_now() >= end || (poll(&pf, 1, 100) > 0 &&
+                                (len + 1 >= n || read(p.out, out + len, 1) != 1)))
+            break;   /* the deadline, EOF or a full buffer */
+        if (pf.revents & POLLIN)
+            out[++len] = 0;
+    }
+    int st = fx_stop(&p, fx_now() < end ? 0 : SIGKILL, fx_now() < end ? end - fx_now() : 1);
+    return st;
+}
+
 static inline int fx_alive(const fx_proc *p)
 {
     int st;

@@ -347,7 +347,8 @@ FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
                   recon/base/seq.c recon/base/status.c
 FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
-FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c drivers/stage_backend.c recon/base/status.c
+FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c drivers/stage_backend.c drivers/stage_probe.c \
+                  recon/base/status.c
 FUZZ_CONFIG_SRC := daemon/config.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.

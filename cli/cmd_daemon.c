@@ -232,6 +232,8 @@ static void print_status(const char *path, JsonObject *st, JsonObject *dev)
            yesno(stg, "connected"));
     if (dcmd_str(stg, "error"))
         printf("    error: %s\n", dcmd_str(stg, "error"));
+    if (dcmd_str(stg, "fix"))
+        printf("    fix: %s\n", dcmd_str(stg, "fix"));
     if (dcmd_int(stg, "rejected_replies", 0) > 0)
         printf("    line: %lld damaged replies rejected (CRC, cut short) and asked again\n",
                (long long)dcmd_int(stg, "rejected_replies", 0));

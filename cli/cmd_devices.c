@@ -1,6 +1,8 @@
 /* cmd_devices.c - `specklab devices`: every camera and stage found, with
  * a diagnosis of what users trip over (USB link speed, permissions, usbfs
- * memory; a stage that does not answer or reports a fault). */
+ * memory; a stage that does not answer or reports a fault; a serial
+ * stage's port missing, not ours to open, or silent at its settings:
+ * drivers/stage_probe.h). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -8,6 +10,7 @@
 #include "camera.h"
 #include "cli.h"
 #include "stage.h"
+#include "stage_probe.h"
 #include "usb.h"
 
 typedef struct devices_out {
@@ -15,6 +18,12 @@ typedef struct devices_out {
     JsonBuilder *b;
     int problems;     /* warnings and errors seen */
 } devices_out;
+
+/* A stage on a serial port (--stage /dev/...): its line settings. */
+typedef struct serial_opts {
+    int baud, unit;
+    char *parity;
+} serial_opts;
 
 static void list_cameras(devices_out *d, const char *backend)
 {
@@ -72,20 +81,49 @@ static int parse_stage(const char *addr, stage_config *cfg, char *host, size_t n
     return 0;
 }
 
-static void show_stage(devices_out *d, const char *addr)
+/* Why the serial stage cannot be used (stage_probe.h), as the stage's
+ * error; its fix on the next line or in "fix".  err: the driver's words. */
+static const char *diagnose_serial(devices_out *d, const stage_config *cfg,
+                                   stage_probe_result *pr, const char *err)
+{
+    if (stage_probe_serial(cfg, 1, pr) != SL_OK || pr->verdict == STAGE_PROBE_OK)
+        return err;
+    if (d->json) {
+        cli_json_str(d->b, "diagnosis", stage_probe_verdict_name(pr->verdict));
+        cli_json_str(d->b, "fix", pr->fix);
+    }
+    return pr->what;
+}
+
+/* addr (a device path: Modbus RTU with so's settings) into cfg; NULL, or
+ * what is wrong with addr. */
+static const char *stage_cfg(const char *addr, const serial_opts *so, stage_config *cfg,
+                             char *host, size_t n)
+{
+    stage_config_defaults(cfg);
+    if (addr[0] != '/')
+        return parse_stage(addr, cfg, host, n) < 0
+                   ? "bad address (expected HOST:PORT or a serial device /dev/...)"
+                   : NULL;
+    cfg->backend = "rtu", cfg->device = addr;
+    cfg->baud = so->baud > 0 ? so->baud : 19200;
+    cfg->parity = so->parity ? g_ascii_toupper(so->parity[0]) : 'E';
+    cfg->unit_id = so->unit > 0 ? so->unit : 1;
+    return NULL;
+}
+
+static void show_stage(devices_out *d, const char *addr, const serial_opts *so)
 {
     stage_config cfg;
-    stage_config_defaults(&cfg);
     char host[256];
     stage *s = NULL;
     stage_ident id;
+    stage_probe_result pr = {0};
     sl_err e = {0};
-    const char *err = NULL;
-    if (parse_stage(addr, &cfg, host, sizeof host) < 0)
-        err = "bad address (expected HOST:PORT)";
-    else if (stage_new(&s, &cfg, &e) != SL_OK)
+    const char *err = stage_cfg(addr, so, &cfg, host, sizeof host);
+    if (!err && stage_new(&s, &cfg, &e) != SL_OK)
         err = e.msg;
-    else if (stage_info(s, &id) != SL_OK)
+    else if (!err && stage_info(s, &id) != SL_OK)
         err = stage_errmsg(s);
     if (d->json) {
         json_builder_set_member_name(d->b, "stage");
@@ -93,11 +131,17 @@ static void show_stage(devices_out *d, const char *addr)
         cli_json_str(d->b, "address", addr);
         json_builder_set_member_name(d->b, "connected");
         json_builder_add_boolean_value(d->b, err == NULL);
-        if (err)
-            cli_json_str(d->b, "error", err);
-    } else {
-        printf("stage %s: %s\n", addr, err ? err : "connected");
     }
+    if (err && s && !strcmp(cfg.backend, "rtu"))
+        err = diagnose_serial(d, &cfg, &pr, err);
+    if (d->json && err)
+        cli_json_str(d->b, "error", err);
+    else if (!d->json && err && g_str_has_prefix(err, "stage "))
+        printf("%s\n", err);   /* the driver's words name the stage */
+    else if (!d->json)
+        printf("stage %s: %s\n", addr, err ? err : "connected");
+    if (!d->json && pr.fix[0])
+        printf("  fix: %s\n", pr.fix);
     if (err)
         d->problems++;
     if (!err && d->json) {
@@ -133,6 +177,11 @@ static void show_stage(devices_out *d, const char *addr)
     }
     if (!err && d->json)
         json_builder_end_array(d->b);
+    if (s && d->json)
+        cli_json_int(d->b, "rejected_replies", stage_rejected_replies(s));
+    else if (s && stage_rejected_replies(s) > 0)
+        printf("  line: %u damaged replies rejected (CRC, cut short) and asked again\n",
+               stage_rejected_replies(s));
     if (d->json)
         json_builder_end_object(d->b);
     stage_free(s);
@@ -185,9 +234,13 @@ static void diagnose_usb(devices_out *d)
 int cmd_devices(int argc, char **argv)
 {
     char *stage_addr = NULL, *backend = NULL;
+    serial_opts so = {0};
     int json = 0, no_stage = 0, status = 2;
     GOptionEntry entries[] = {
-        {"stage", 0, 0, G_OPTION_ARG_STRING, &stage_addr, "stage to query (default 127.0.0.1:1502)", "HOST:PORT"},
+        {"stage", 0, 0, G_OPTION_ARG_STRING, &stage_addr, "stage to query (default 127.0.0.1:1502; /dev/...: Modbus RTU)", "HOST:PORT|DEVICE"},
+        {"baud", 0, 0, G_OPTION_ARG_INT, &so.baud, "RTU baud rate (default 19200)", "N"},
+        {"parity", 0, 0, G_OPTION_ARG_STRING, &so.parity, "RTU parity N|E|O (default E)", "P"},
+        {"unit", 0, 0, G_OPTION_ARG_INT, &so.unit, "RTU unit id (default 1)", "N"},
         {"no-stage", 0, 0, G_OPTION_ARG_NONE, &no_stage, "do not query a stage", NULL},
         {"camera-backend", 0, 0, G_OPTION_ARG_STRING, &backend, "camera backend (default aravis)", "NAME"},
         {"json", 0, 0, G_OPTION_ARG_NONE, &json, "print one JSON object", NULL},
@@ -203,7 +256,7 @@ int cmd_devices(int argc, char **argv)
     }
     list_cameras(&d, backend ? backend : "aravis");
     if (!no_stage)
-        show_stage(&d, stage_addr ? stage_addr : "127.0.0.1:1502");
+        show_stage(&d, stage_addr ? stage_addr : "127.0.0.1:1502", &so);
     diagnose_usb(&d);
     if (json) {
         cli_json_int(d.b, "problems", d.problems);
@@ -217,6 +270,7 @@ int cmd_devices(int argc, char **argv)
 free_ctx:
     g_option_context_free(ctx);
     g_free(stage_addr);
+    g_free(so.parity);
     g_free(backend);
     return status;
 }

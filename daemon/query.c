@@ -7,6 +7,8 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "stage_probe.h"
+
 static JsonNode *builder_done(JsonBuilder *b)
 {
     JsonNode *n = json_builder_get_root(b);
@@ -114,6 +116,7 @@ typedef struct devq {
     int known, connected;
     unsigned rejected;
     char error[SL_ERRMSG_MAX];
+    char fix[SL_ERRMSG_MAX];   /* a serial stage: what to do (stage_probe.h) */
 } devq;
 
 static void devices_thread(GTask *task, gpointer src, gpointer data, GCancellable *cancel)
@@ -147,6 +150,13 @@ static void devices_thread(GTask *task, gpointer src, gpointer data, GCancellabl
         v->rejected = stage_rejected_replies(s);
         stage_free(s);
     }
+    stage_probe_result pr;
+    /* no scan of other settings here: a query is answered within seconds */
+    if (!v->known && !strcmp(sc.backend, "rtu") && stage_probe_serial(&sc, 0, &pr) == SL_OK &&
+        pr.verdict != STAGE_PROBE_OK && pr.verdict != STAGE_PROBE_ERROR) {
+        snprintf(v->error, sizeof v->error, "%s", pr.what);
+        snprintf(v->fix, sizeof v->fix, "%s", pr.fix);
+    }
     g_task_return_boolean(task, TRUE);
 }
 
@@ -168,6 +178,7 @@ static void devices_done(GObject *src, GAsyncResult *res, gpointer data)
     proto_add_str(b, "address", addr);
     proto_add_bool(b, "connected", v->known);
     proto_add_str(b, "error", v->error[0] ? v->error : NULL);
+    proto_add_str(b, "fix", v->fix[0] ? v->fix : NULL);
     proto_add_int(b, "rejected_replies", rs.stage_rejected + d->stage_rejected);
     add_wheels(b, v->ws, v->known);
     json_builder_end_object(b);

@@ -2,7 +2,8 @@
  * baud, parity, unit) against bin/specklab-fake-stage --rtu on a
  * pseudo-terminal (stage_fx.h starts it): the daemon's settings reach the
  * line, its device query reads the wheels through the pty, a mismatched
- * parity is a named "no reply", an unknown one stops the daemon.
+ * parity is a named "no reply" with what to check (stage_probe.h), an
+ * unknown one stops the daemon.
  * specklabd and specklab are taken from the fake's directory.
  */
 #include "stage_fx.h"
@@ -131,7 +132,8 @@ TEST(rtu_daemon_config)
     snprintf(want, sizeof want, "stage:       %s (NOT CONNECTED)", d.tty);
     memcpy(out, outs[1], sizeof out);
     CHECK(up[1] == 0 && st[1] == 0 && HAS(out, want) &&
-          HAS(out, "then no reply within") && HAS(out, "during the identity check"),
+          HAS(out, "no reply at 19200 baud, parity E (even), unit 7") &&
+          HAS(out, "fix: check the baud rate and parity") && HAS(out, "specklab devices --stage"),
           "parity=E: start %d, status %d:\n%s", up[1], st[1], out);
     CHECK(up[2] == 1 && HAS(log, "[stage] parity = 'X': expected N (none), E (even) "
           "or O (odd)"), "parity=X: start %d:\n%s", up[2], log);

@@ -66,7 +66,7 @@ static void binary_bench_over_rtu_body(tc *t, bench *b)
     char bin[PATH_MAX], out[4096];
     fx_bin(bin, sizeof bin, "specklab");
     char *argv[] = {bin, "daemon", "status", "--socket", b->sock, NULL};
-    int rc = fx_run(argv, NULL, out, sizeof out, 20);
+    int rc = fx_run(argv, NULL, NULL, NULL, out, sizeof out, 20);
     CHECK(rc == 0 && has(out, "line: 8 damaged replies rejected"),
           "specklab daemon status (exit %d):\n%s", rc, out);
 }

@@ -253,16 +253,16 @@ static inline int fx_stop(fx_proc *p, int sig, double limit_s)
     return rc;
 }
 
-/* Run argv to its end within limit_s (then SIGKILL), stderr to errlog as
- * fx_spawn; its stdout in out (NUL-ended, cut at n).  The exit status, -1
- * when it could not start or was killed. */
-static inline int fx_run(char *const argv[], const char *errlog, char *out, size_t n,
-                         double limit_s)
+/* Run argv to its end within limit_s (then SIGKILL), stderr to errlog and
+ * pre(arg) as fx_spawn; its stdout in out (NUL-ended, cut at n).  The exit
+ * status, -1 when it could not start or was killed. */
+static inline int fx_run(char *const argv[], const char *errlog, void (*pre)(void *), void *arg,
+                         char *out, size_t n, double limit_s)
 {
     fx_proc p;
     size_t len = 0;
     out[0] = 0;
-    if (fx_spawn(&p, argv, errlog, NULL, NULL) != 0)
+    if (fx_spawn(&p, argv, errlog, pre, arg) != 0)
         return -1;
     double end = fx_now() + limit_s;
     for (;;) {

@@ -114,7 +114,24 @@ TINT_BIN  := $(TINT_SRC:tests/integration/%.c=$(BUILD)/tests/%)
 TINT_HELP := $(filter-out $(TINT_SRC),$(wildcard tests/integration/*.c))
 ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
 
-PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd)
+# MPI (optional): Open MPI found by pkg-config (ompi-c, else mpi) builds
+# bin/specklab-mpi from mpi/ (specklab recon over MPI ranks); MPI=1 insists
+# (an error without it), MPI=0 leaves it out.  Nothing else links MPI, so
+# the plain build is the same with or without it.
+MPI_PKG := $(firstword $(foreach p,ompi-c mpi,$(shell $(PKG) --exists $(p) 2>/dev/null && echo $(p))))
+MPI ?= $(if $(MPI_PKG),1,0)
+ifeq ($(MPI),1)
+ifeq ($(MPI_PKG),)
+$(error MPI=1 but pkg-config knows neither ompi-c nor mpi: apt-get install libopenmpi-dev openmpi-bin)
+endif
+endif
+mpi_cflags = $(shell $(PKG) --cflags $(MPI_PKG) 2>/dev/null)
+mpi_libs   = $(shell $(PKG) --libs $(MPI_PKG) 2>/dev/null)
+MPI_SRC   := $(wildcard mpi/*.c)
+MPI_OBJ   := $(MPI_SRC:%.c=$(BUILD)/%.o)
+MPI_BIN   := $(if $(filter 1,$(MPI)),$(BIN)/specklab-mpi)
+
+PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd) $(MPI_BIN)
 
 .PHONY: all deps test quick stress soak soak-web asan asan-ci-build valgrind bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
@@ -176,11 +193,15 @@ $(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
 
+# test_mpi runs mpirun on bin/specklab-mpi when the build has MPI.
+$(BUILD)/tests/test_mpi: $(MPI_BIN)
+
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
 $(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
+	    $(if $(MPI_BIN),-DSL_HAVE_MPI=1) \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
 	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) $(fig_libs) -lm
@@ -212,6 +233,15 @@ $(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BE
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
 	    $(recon_libs) $(cli_libs) $(schema_libs) $(fig_libs)
+
+$(BUILD)/mpi/%.o: mpi/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Icli $(recon_cflags) $(cli_cflags) $(mpi_cflags) -c $< -o $@
+
+$(BIN)/specklab-mpi: $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
+	    $(recon_libs) $(cli_libs) $(schema_libs) $(fig_libs) $(mpi_libs)
 
 $(BUILD)/daemon/%.o: daemon/%.c
 	@mkdir -p $(dir $@)

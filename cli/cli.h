@@ -13,6 +13,11 @@ int cmd_stage(int argc, char **argv);
 int cmd_camera(int argc, char **argv);
 int cmd_devices(int argc, char **argv);
 int cmd_recon(int argc, char **argv);
+/* `specklab recon CUBE` as one process of a run split over several
+ * (pipeline.h, pipeline_share; NULL: cmd_recon): rank 0 writes the
+ * outputs, the others only add their frames' sums. */
+struct pipeline_share;
+int cmd_recon_shared(int argc, char **argv, const struct pipeline_share *share);
 int cmd_compare(int argc, char **argv);
 int cmd_binary(int argc, char **argv);
 int cmd_oifits(int argc, char **argv);

@@ -261,12 +261,35 @@ static int write_pngs(const recon_args *a, const outfile out[3], skyfig_opts *f,
     return skyfig_write_png(out[1].tmp, r->image, r->width, r->height, f, e);
 }
 
-static int recon_run(recon_args *a, char **inputs, int ninputs)
+/* A rank other than 0 of a split run: its share of the sums, no output
+ * (rank 0 writes the image). */
+static int recon_follow(const pipeline_opts *o, char **inputs, int ninputs)
+{
+    pipeline_result r;
+    sl_err e = {0};
+    if (pipeline_run((const char *const *)inputs, ninputs, o, &r, &e) != SL_OK) {
+        fprintf(stderr, "specklab recon: rank %d: %s\n", o->share->rank, e.msg);
+        return e.code == SL_EINVAL ? 2 : 1;
+    }
+    pipeline_result_clear(&r);
+    return 0;
+}
+
+static int recon_run(recon_args *a, char **inputs, int ninputs,
+                     const pipeline_share *share)
 {
     pipeline_opts o;
     skyfig_opts fig;
     if (!opts_from_args(a, &o) || !display_from_args(a, &fig))
         return 2;
+    if (share) {
+        /* Plans by rule, not by timing: every rank transforms a frame
+         * alike, so the image does not depend on which rank read it. */
+        o.fftw_measure = 0;
+        o.share = share;
+        if (share->rank > 0)
+            return recon_follow(&o, inputs, ninputs);
+    }
     outfile out[3] = {{0}};
     if (!outputs_begin(a, inputs, ninputs, out))
         return 2;
@@ -311,9 +334,14 @@ clear_outputs:
 
 int cmd_recon(int argc, char **argv)
 {
+    return cmd_recon_shared(argc, argv, NULL);
+}
+
+int cmd_recon_shared(int argc, char **argv, const pipeline_share *share)
+{
     /* `specklab recon RUN-ID`: a catalogued run, reconstructed by the
      * daemon and stored as a new reconstruction row. */
-    for (int i = 1; i < argc; i++)
+    for (int i = 1; i < argc && !share; i++)
         if (argv[i][0] != '-' && (i == 1 || argv[i - 1][0] != '-' ||
                                   strchr(argv[i - 1], '=')))
             if (cmd_recon_is_run_id(argv[i]))
@@ -380,7 +408,7 @@ int cmd_recon(int argc, char **argv)
         fprintf(stderr, "specklab recon: need an input sequence and -o FILE (try --help)\n");
         goto free_ctx;
     }
-    status = recon_run(&a, argv + 1, argc - 1);
+    status = recon_run(&a, argv + 1, argc - 1, share);
 free_ctx:
     g_option_context_free(ctx);
     g_free(a.method); g_free(a.out); g_free(a.png); g_free(a.ref);

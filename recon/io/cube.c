@@ -501,6 +501,22 @@ void cube_reader_rewind(cube_reader *r)
     sl_clearerr(&r->err);
 }
 
+int cube_reader_seek(cube_reader *r, int k)
+{
+    if (k < 0 || k > r->nframes)
+        return sl_seterr(&r->err, SL_ERANGE, "frame %d outside 0..%d", k, r->nframes);
+    int cur = 0, first = 0;
+    while (cur < r->nfiles - 1 && first + r->files[cur].nframes <= k)
+        first += r->files[cur++].nframes;
+    if (cur != r->cur)
+        close_current(r);
+    r->cur = cur;
+    r->in_file = k - first;
+    r->frame = k;
+    sl_clearerr(&r->err);
+    return SL_OK;
+}
+
 void cube_reader_free(cube_reader *r)
 {
     if (!r)

@@ -173,6 +173,10 @@ double cube_reader_code_max(const cube_reader *r);
 int cube_reader_next(cube_reader *r, float *frame);
 /* Start again at frame 0 (closes the current file). */
 void cube_reader_rewind(cube_reader *r);
+/* Go to frame k (0..nframes; nframes: the end) without reading the
+ * frames before it: a process reading its own range of a long sequence
+ * pays for its frames only.  SL_ERANGE outside. */
+int cube_reader_seek(cube_reader *r, int k);
 const char *cube_reader_errmsg(const cube_reader *r);
 void cube_reader_free(cube_reader *r);
 

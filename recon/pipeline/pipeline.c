@@ -60,6 +60,8 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
     if (!p)
         return err ? err->code : SL_ENOMEM;
     int rc = stream_feed(s, ps_add, p, "power spectrum", err);
+    if (rc == SL_OK)
+        rc = stream_share_powspec(s, p, err);
     if (rc == SL_OK && !(g > 0) && photons > 0) {
         /* Gain from the data, for the bispectrum's Wirnitzer terms; in
          * this pass the floor estimate stands for the photon bias. */
@@ -251,6 +253,7 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         goto free_all;
     }
     if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK ||
+        (rc = stream_share_bispec(s, b, err)) != SL_OK ||
         (rc = direct_modulus(s, ref, o, &sp, support, &mod, rep, err)) != SL_OK)
         goto free_all;
     if ((rc = bispec_image(b, mod, img)) != SL_OK) {
@@ -284,6 +287,8 @@ static int tsm_sequence(stream *s, const tsm_opts *to, tsm **out, sl_err *err)
     if (!t)
         return err ? err->code : SL_ENOMEM;
     int rc = stream_feed(s, tsm_add_fn, t, "projections", err);
+    if (rc == SL_OK)
+        rc = stream_share_tsm(s, t, err);
     if (rc != SL_OK) {
         tsm_free(t);
         return rc;

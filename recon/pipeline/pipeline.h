@@ -60,6 +60,34 @@ enum pipeline_skip {
     PIPE_SKIP_ALL = 15
 };
 
+/* A run split over processes, e.g. MPI ranks (pipeline_share.c).  Every
+ * process calls pipeline_run with the same paths and options; process
+ * rank of nranks accumulates only frames [n rank / nranks, n (rank + 1) /
+ * nranks) of the n in the sequence (its own range: it reads no other),
+ * and wherever an estimator's sums are complete the hooks make them whole:
+ *   reduce: replace sums[0..n) on every process by the element-wise sum
+ *           of every process's, added in rank order (pipeline_sums_merge,
+ *           once per rank, 0 first) whatever order they arrive in, so the
+ *           image depends on the ranges, not on timing;
+ *   agree:  replace buf on every process by rank 0's: decisions (auto's
+ *           choice) are taken once, on rank 0.
+ * Every process calls them at the same points in the same order; they
+ * return SL_OK or an error code, with which the run stops.  What each
+ * process computes from the first frames alone (the scale, the detector,
+ * the scene probe's crop and frame-quality reference) is the same
+ * deterministic function of the same frames everywhere.  Every process
+ * ends with the same image and header; the caller writes rank 0's. */
+typedef struct pipeline_share {
+    int rank, nranks;
+    int (*reduce)(void *ctx, double *sums, size_t n);
+    int (*agree)(void *ctx, void *buf, size_t bytes);
+    void *ctx;
+} pipeline_share;
+
+/* acc[i] += part[i], i < n: the merge, called once per part in a fixed
+ * (rank) order. */
+void pipeline_sums_merge(double *acc, const double *part, size_t n);
+
 typedef struct pipeline_opts {
     int method;               /* enum pipeline_method; default PIPE_AUTO */
     int nangles;              /* TSM projections; 0 = 180 */
@@ -131,6 +159,7 @@ typedef struct pipeline_opts {
                                * (closure.h) into the header:
                                * CPSEP, CPPA, CPDM (+E: 1-sigma errors),
                                * CPAMBIG, CPNTRI, CPNFREQ, CPRMS, CPSTAT */
+    const pipeline_share *share; /* NULL (default): one process */
 } pipeline_opts;
 
 /* The binary a reconstruction measured (closure_binary), and what the

@@ -5,6 +5,7 @@
 
 #include "autoconf.h"
 #include "spectra/bispec.h"
+#include "spectra/powspec.h"
 #include "io/cube.h"
 #include "pipeline.h"
 #include "prep.h"
@@ -42,6 +43,12 @@ typedef struct stream {
     void (*progress)(void *ctx, double done, double total, const char *what);
     void *progress_ctx;
     double fed, feed_total;
+    /* pipeline_opts.share: this process feeds frames [k0, k1) (all of
+     * them without share); the probe's verdicts over every process once
+     * the first pass has counted them (counts_whole). */
+    const pipeline_share *share;
+    int k0, k1;
+    int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
 /* Open paths for streaming; with o->prep, frames are cleaned as the
@@ -61,6 +68,19 @@ int stream_next(stream *s);
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* Expect passes more feeds of every frame (for the progress estimate). */
 void stream_expect_passes(stream *s, int passes);
+
+/* A run split over processes (pipeline_share.c; pipeline.h,
+ * pipeline_share): stream_share_range sets s's frame range from share
+ * (may be NULL: every frame); the others make an accumulator's sums whole
+ * (reduce), or buf rank 0's (agree).  Without share they do nothing. */
+void stream_share_range(stream *s, const pipeline_share *share);
+int stream_share_powspec(stream *s, powspec *p, sl_err *err);
+int stream_share_bispec(stream *s, bispec *b, sl_err *err);
+int stream_share_tsm(stream *s, tsm *t, sl_err *err);
+int stream_share_doubles(stream *s, double *v, size_t n, sl_err *err);
+int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err);
+/* 1 when this process takes the decisions: rank 0, or no share. */
+int stream_leads(const stream *s);
 
 /* Photon statistics (pipeline_photons.c).  stream_photon_stats: photons
  * per frame and g (ADU per photon, in s's scaled units) from the options,

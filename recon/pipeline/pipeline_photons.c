@@ -67,6 +67,8 @@ static int stream_photons_from_gain(stream *s, double g, double *photons,
 {
     double acc[3] = {(double)s->w * s->h, 0, 0};
     int rc = stream_feed(s, flux_add, acc, "mean flux", err);
+    if (rc == SL_OK)
+        rc = stream_share_doubles(s, acc + 1, 2, err);
     *photons = 0;
     if (rc == SL_OK && acc[2] > 0 && acc[1] > 0 && g > 0)
         *photons = acc[1] / acc[2] / g;

@@ -62,9 +62,12 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
          * tsm-fourier's raw ones, cheaper, met 16 (dm +0.10..+0.32 at 1e4
          * photons, with jitter, at 0.5x Nyquist). */
         int m = o->method == PIPE_AUTO && o->closure_binary ? PIPE_DIRECT : o->method;
-        autoconf_choose(sc, nk, m, !!(skips & PIPE_SKIP_ANGLES),
-                        o->nangles, !!(skips & PIPE_SKIP_SUPPORT),
-                        !!(skips & PIPE_SKIP_CROP), o->target_error, ch);
+        if (stream_leads(s))
+            autoconf_choose(sc, nk, m, !!(skips & PIPE_SKIP_ANGLES),
+                            o->nangles, !!(skips & PIPE_SKIP_SUPPORT),
+                            !!(skips & PIPE_SKIP_CROP), o->target_error, ch);
+        if ((rc = stream_agree(s, ch, sizeof *ch, err)) != SL_OK)
+            return rc;
         if ((rc = probe_set_crop(s->pb, ch->crop_level)) != SL_OK)
             return sl_seterr(err, rc, "scene probe: %s", probe_errmsg(s->pb));
         eo->method = ch->method;
@@ -89,7 +92,26 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
     }
     if (*photons > 0)
         *photons *= sc->crop_flux_frac;
+    probe_counts(s->pb, s->counts); /* the probed frames' verdicts */
     return SL_OK;
+}
+
+/* Split over processes: the verdicts of every process's frames, once the
+ * first pass has judged them (the probed ones, judged everywhere, once). */
+static int skip_count_whole(stream *s, sl_err *err)
+{
+    if (!s->share)
+        return SL_OK;
+    int now[PROBE_NVERDICT];
+    double v[PROBE_NVERDICT];
+    probe_counts(s->pb, now);
+    for (int i = 0; i < PROBE_NVERDICT; i++)
+        v[i] = now[i] - s->counts[i];
+    int rc = stream_share_doubles(s, v, PROBE_NVERDICT, err);
+    for (int i = 0; rc == SL_OK && i < PROBE_NVERDICT; i++)
+        s->counts[i] += (int)v[i];
+    s->counts_whole = rc == SL_OK;
+    return rc;
 }
 
 /* Judge frame k; feed its crop when kept (and cache it on pass 1). */
@@ -116,16 +138,16 @@ int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
                 return sl_seterr(err, rc, "kept frame %d: %s", i, what);
         return SL_OK;
     }
+    k = s->k0;
     if (first) {
-        for (; k < probe_nstored(s->pb); k++)
+        for (; k < probe_nstored(s->pb) && k < s->k1; k++)
             if ((rc = select_add(s, k, probe_stored(s->pb, k), NULL, add, h,
                                  first, what, err)) != SL_OK)
                 return rc;
-    } else {
-        cube_reader_rewind(s->rd);
     }
     prep_stats st;
-    while ((rc = stream_next(s)) == SL_OK) {
+    rc = cube_reader_seek(s->rd, k);
+    while (rc == SL_OK && (rc = k < s->k1 ? stream_next(s) : SL_EEND) == SL_OK) {
         memset(&st, 0, sizeof st);
         if (s->pp)
             prep_frame(s->pp, s->frame, &st);
@@ -135,14 +157,14 @@ int skip_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
     }
     if (rc != SL_EEND)
         return sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
-    return SL_OK;
+    return first ? skip_count_whole(s, err) : SL_OK;
 }
 
 int skip_nkept(const stream *s)
 {
     int c[PROBE_NVERDICT];
     probe_counts(s->pb, c);
-    return c[PROBE_KEEP];
+    return s->counts_whole ? s->counts[PROBE_KEEP] : c[PROBE_KEEP];
 }
 
 void skip_report(const stream *s, const pipeline_opts *o, int skips,
@@ -151,6 +173,8 @@ void skip_report(const stream *s, const pipeline_opts *o, int skips,
     memset(r, 0, sizeof *r);
     r->skips = skips;
     probe_report_fill(s->pb, r);
+    for (int v = 0; s->counts_whole && v < PROBE_NVERDICT; v++)
+        r->rejected[v] = s->counts[v];
     if (!ch->chosen)
         return;
     r->chosen = 1;

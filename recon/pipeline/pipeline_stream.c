@@ -245,6 +245,7 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     s->w = cube_reader_width(s->rd);
     s->h = cube_reader_height(s->rd);
     s->n = cube_reader_nframes(s->rd);
+    stream_share_range(s, o->share);
     s->progress = o->progress;
     s->progress_ctx = o->progress_ctx;
     s->feed_total = 2.0 * s->n; /* until the plan is known */
@@ -270,7 +271,7 @@ close_stream:
 
 void stream_expect_passes(stream *s, int passes)
 {
-    s->feed_total = s->fed + (double)passes * s->n;
+    s->feed_total = s->fed + (double)passes * (s->k1 - s->k0);
 }
 
 /* add, counted for the progress callback. */
@@ -286,7 +287,7 @@ static int counted_add(void *ctx, const float *frame)
     counted *c = ctx;
     stream *s = c->s;
     if (++s->fed > s->feed_total)
-        s->feed_total = s->fed + s->n; /* one more pass than planned */
+        s->feed_total = s->fed + (s->k1 - s->k0); /* one more pass than planned */
     s->progress(s->progress_ctx, s->fed, s->feed_total, c->what);
     return c->add ? c->add(c->h, frame) : SL_OK;
 }
@@ -301,9 +302,8 @@ int stream_feed(stream *s, add_fn add, void *h, const char *what,
     }
     if (s->pb)
         return skip_feed(s, add, h, what, err);
-    cube_reader_rewind(s->rd);
-    int rc, k = 0;
-    while ((rc = stream_next(s)) == SL_OK) {
+    int rc = cube_reader_seek(s->rd, s->k0), k = s->k0;
+    while (rc == SL_OK && (rc = k < s->k1 ? stream_next(s) : SL_EEND) == SL_OK) {
         if (s->pp)
             prep_frame(s->pp, s->frame, NULL);
         if (add && (rc = add(h, s->frame)) != SL_OK)

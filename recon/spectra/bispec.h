@@ -141,4 +141,13 @@ int bispec_image(bispec *b, const double *modulus, float *img);
 int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
                   closure_fit_info *info);
 
+/* The accumulators as flat doubles (the frame count among them), for a
+ * sequence split over processes (bispec_partial.c): bispec_sums adds the
+ * buffered batch, writes them to buf (NULL: none) and returns how many;
+ * bispec_partial_load replaces this handle's with buf's (e.g. the
+ * element-wise sum over every part).  Same opts and support on every
+ * part, so the layouts agree. */
+size_t bispec_partial(bispec *b, double *buf);
+void bispec_partial_load(bispec *b, const double *buf);
+
 #endif

@@ -423,3 +423,44 @@ int powspec_support(const double *ps, int w, int h, double nsigma,
         *rcut_px = rmax;
     return SL_OK;
 }
+
+/* Layout: ps (nh), ft (2 nh: re, im), aft (2 nh, opts.aligned only),
+ * flux, pbias, n. */
+static void complex_out(const double complex *z, size_t n, double *buf)
+{
+    for (size_t k = 0; k < n; k++)
+        buf[2 * k] = creal(z[k]), buf[2 * k + 1] = cimag(z[k]);
+}
+
+static void complex_in(const double *buf, size_t n, double complex *z)
+{
+    for (size_t k = 0; k < n; k++)
+        z[k] = buf[2 * k] + I * buf[2 * k + 1];
+}
+
+size_t powspec_partial(const powspec *p, double *buf)
+{
+    size_t nh = (size_t)p->h * p->wc, na = p->aft ? 2 * nh : 0, e = 3 * nh + na;
+    if (buf) {
+        memcpy(buf, p->ps, nh * sizeof *buf);
+        complex_out(p->ft, nh, buf + nh);
+        if (p->aft)
+            complex_out(p->aft, nh, buf + 3 * nh);
+        buf[e] = p->flux;
+        buf[e + 1] = p->pbias;
+        buf[e + 2] = p->n;
+    }
+    return e + 3;
+}
+
+void powspec_partial_load(powspec *p, const double *buf)
+{
+    size_t nh = (size_t)p->h * p->wc, na = p->aft ? 2 * nh : 0, e = 3 * nh + na;
+    memcpy(p->ps, buf, nh * sizeof *buf);
+    complex_in(buf + nh, nh, p->ft);
+    if (p->aft)
+        complex_in(buf + 3 * nh, nh, p->aft);
+    p->flux = buf[e];
+    p->pbias = buf[e + 1];
+    p->n = (int)buf[e + 2];
+}

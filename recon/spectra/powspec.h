@@ -112,4 +112,11 @@ int powspec_support(const double *ps, int w, int h, double nsigma,
                     double rel_min, double floor_rho, double noise_sd,
                     unsigned char *mask, double *rcut_px);
 
+/* The sums behind the result, as flat doubles (the frame count among
+ * them), for a sequence split over processes: powspec_sums writes them to
+ * buf (NULL: none) and returns how many; powspec_partial_load replaces this
+ * handle's with buf's, e.g. the element-wise sum over every part. */
+size_t powspec_partial(const powspec *p, double *buf);
+void powspec_partial_load(powspec *p, const double *buf);
+
 #endif

@@ -411,3 +411,20 @@ int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
     free(b);
     return rc;
 }
+
+size_t tsm_partial(tsm *t, double *buf)
+{
+    size_t n = tsm_accum_pack(t->acc, buf);
+    if (buf)
+        buf[n] = t->nframes;
+    return n + 1;
+}
+
+void tsm_partial_load(tsm *t, const double *buf)
+{
+    size_t n = tsm_accum_pack(t->acc, NULL);
+    t->nframes = (int)buf[n];
+    tsm_accum_unpack(t->acc, buf, t->nframes);
+    tsm_sync_sums(t);
+    t->have_result = 0;
+}

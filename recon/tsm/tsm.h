@@ -339,4 +339,12 @@ void tsm_phase_shift(float complex *sp, int nf, int ns, double c);
 int tsm_phase_reproj(radon *rad, float complex *spec, int nf, size_t npix, int iters,
                      double frac, float *img, float complex *tmpl, float *dsum, double *scr);
 
+/* The sums of steps (1)-(2) as flat doubles (the frame count among
+ * them), for a sequence split over processes: tsm_partial writes them to buf
+ * (NULL: none) and returns how many; tsm_partial_load replaces this handle's
+ * with buf's (e.g. the element-wise sum over every part; same options on
+ * every part, so the layouts agree). */
+size_t tsm_partial(tsm *t, double *buf);
+void tsm_partial_load(tsm *t, const double *buf);
+
 #endif

@@ -342,3 +342,36 @@ const tsm_sums *tsm_accum_sums(tsm_accum *a)
     finish(a);
     return &a->sums;
 }
+
+/* The five sums in the order of tsm_sums' fields. */
+static void sum_parts(tsm_accum *a, double *part[5], size_t len[5])
+{
+    size_t nb = (size_t)a->nang * a->np, ns = (size_t)a->nang * a->nf;
+    double *p[5] = {a->bre, a->bim, a->ps, a->mre, a->mim};
+    for (int i = 0; i < 5; i++)
+        part[i] = p[i], len[i] = i < 2 ? nb : ns;
+}
+
+size_t tsm_accum_pack(tsm_accum *a, double *buf)
+{
+    double *part[5];
+    size_t len[5], n = 0;
+    sum_parts(a, part, len);
+    if (buf)
+        tsm_accum_sums(a); /* the blocks still buffered */
+    for (int i = 0; i < 5; n += len[i++])
+        if (buf)
+            memcpy(buf + n, part[i], len[i] * sizeof *buf);
+    return n;
+}
+
+void tsm_accum_unpack(tsm_accum *a, const double *buf, int nframes)
+{
+    double *part[5];
+    size_t len[5], n = 0;
+    tsm_accum_sums(a);
+    sum_parts(a, part, len);
+    for (int i = 0; i < 5; n += len[i++])
+        memcpy(part[i], buf + n, len[i] * sizeof *buf);
+    a->nframes = nframes;
+}

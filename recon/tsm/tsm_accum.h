@@ -32,6 +32,7 @@
 #define SL_TSM_ACCUM_H
 
 #include <complex.h>
+#include <stddef.h>
 
 #include "radon.h"
 #include "base/status.h"
@@ -68,5 +69,12 @@ float complex *tsm_accum_slot(tsm_accum *a);
 void tsm_accum_commit(tsm_accum *a);
 /* Add whatever is buffered, then the sums (valid until the next add). */
 const tsm_sums *tsm_accum_sums(tsm_accum *a);
+
+/* The sums as flat doubles (bre, bim, ps, mre, mim), for a sequence
+ * split over processes: pack adds what is buffered, writes them to buf
+ * (NULL: none) and returns how many; unpack replaces them with buf's and
+ * the frame count with nframes. */
+size_t tsm_accum_pack(tsm_accum *a, double *buf);
+void tsm_accum_unpack(tsm_accum *a, const double *buf, int nframes);
 
 #endif

@@ -1,0 +1,100 @@
+/* pipeline_share.c - a run split over processes (pipeline.h,
+ * pipeline_share; pipeline_int.h): each process's frame range, and the
+ * accumulators' sums made whole through the caller's hooks.
+ *
+ * Why flat doubles: every sum (powers, bispectra, frame counts) adds
+ * element-wise, so one merge (pipeline_sums_merge) serves every estimator
+ * and the transport (MPI, or anything else) needs no knowledge of them.
+ * Cost: one buffer the size of the sums per reduction, freed at once.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "pipeline_int.h"
+
+void pipeline_sums_merge(double *acc, const double *part, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        acc[i] += part[i];
+}
+
+void stream_share_range(stream *s, const pipeline_share *share)
+{
+    s->share = share && share->nranks > 1 ? share : NULL;
+    s->k0 = 0;
+    s->k1 = s->n;
+    if (s->share) {
+        long n = s->n, r = share->rank, nr = share->nranks;
+        s->k0 = (int)(n * r / nr);
+        s->k1 = (int)(n * (r + 1) / nr);
+    }
+}
+
+int stream_leads(const stream *s)
+{
+    return !s->share || s->share->rank == 0;
+}
+
+int stream_share_doubles(stream *s, double *v, size_t n, sl_err *err)
+{
+    if (!s->share)
+        return SL_OK;
+    int rc = s->share->reduce(s->share->ctx, v, n);
+    return rc == SL_OK ? SL_OK
+                       : sl_seterr(err, rc, "rank %d: summing %zu values over %d "
+                                   "ranks failed", s->share->rank, n, s->share->nranks);
+}
+
+int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err)
+{
+    if (!s->share)
+        return SL_OK;
+    int rc = s->share->agree(s->share->ctx, buf, bytes);
+    return rc == SL_OK ? SL_OK
+                       : sl_seterr(err, rc, "rank %d: taking rank 0's decision "
+                                   "failed", s->share->rank);
+}
+
+/* Export, reduce, load back: get(h, NULL) is the count. */
+typedef size_t (*sums_get)(void *h, double *buf);
+typedef void (*sums_load)(void *h, const double *buf);
+
+static int share_sums(stream *s, void *h, sums_get get, sums_load load,
+                      const char *what, sl_err *err)
+{
+    if (!s->share)
+        return SL_OK;
+    size_t n = get(h, NULL);
+    double *buf = malloc(n * sizeof *buf);
+    if (!buf)
+        return sl_seterr(err, SL_ENOMEM, "out of memory for the %s's %zu sums",
+                         what, n);
+    get(h, buf);
+    int rc = stream_share_doubles(s, buf, n, err);
+    if (rc == SL_OK)
+        load(h, buf);
+    free(buf);
+    return rc;
+}
+
+static size_t ps_get(void *h, double *buf) { return powspec_partial(h, buf); }
+static void ps_load(void *h, const double *buf) { powspec_partial_load(h, buf); }
+static size_t bs_get(void *h, double *buf) { return bispec_partial(h, buf); }
+static void bs_load(void *h, const double *buf) { bispec_partial_load(h, buf); }
+static size_t tsm_get(void *h, double *buf) { return tsm_partial(h, buf); }
+static void tsm_load(void *h, const double *buf) { tsm_partial_load(h, buf); }
+
+int stream_share_powspec(stream *s, powspec *p, sl_err *err)
+{
+    return share_sums(s, p, ps_get, ps_load, "power spectrum", err);
+}
+
+int stream_share_bispec(stream *s, bispec *b, sl_err *err)
+{
+    return share_sums(s, b, bs_get, bs_load, "bispectrum", err);
+}
+
+int stream_share_tsm(stream *s, tsm *t, sl_err *err)
+{
+    return share_sums(s, t, tsm_get, tsm_load, "projections", err);
+}

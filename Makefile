@@ -193,8 +193,8 @@ $(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
 
-# test_mpi runs mpirun on bin/specklab-mpi when the build has MPI.
-$(BUILD)/tests/test_mpi: $(MPI_BIN)
+# test_mpi* run mpirun on bin/specklab-mpi when the build has MPI.
+$(BUILD)/tests/test_mpi $(BUILD)/tests/test_mpi_reprocess: $(MPI_BIN)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
@@ -236,7 +236,7 @@ $(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BE
 
 $(BUILD)/mpi/%.o: mpi/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Icli $(recon_cflags) $(cli_cflags) $(mpi_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Icli -Ischema $(recon_cflags) $(cli_cflags) $(schema_cflags) $(mpi_cflags) -c $< -o $@
 
 $(BIN)/specklab-mpi: $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)

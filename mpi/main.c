@@ -1,6 +1,7 @@
 /* main.c - `mpirun -n N specklab-mpi recon CUBE ...`: specklab recon with
  * the frames split over MPI ranks (pipeline.h, pipeline_share; the sums
- * reduced in rank order, mpishare.h).  Built only when Open MPI is
+ * reduced in rank order, mpishare.h); `... reprocess --catalog DB`: the
+ * catalogued runs spread over the ranks (reprocess.h).  Built only when Open MPI is
  * installed (the Makefile's MPI); the plain specklab never links MPI.
  *
  * A rank that fails ends the job (MPI_Abort) with its exit status, after
@@ -12,20 +13,30 @@
 #include "cli.h"
 #include "jsonmode.h"
 #include "mpishare.h"
+#include "reprocess.h"
 
 static void usage(FILE *f)
 {
     fprintf(f, "Usage: mpirun -n N specklab-mpi recon CUBE.fits -o IMAGE.fits [OPTION]...\n"
-               "The options are specklab recon's (specklab recon --help); each rank\n"
-               "reads its own range of the frames, rank 0 writes the outputs.\n");
+               "       mpirun -n N specklab-mpi reprocess --catalog DB [--method M] [--since TIME]\n"
+               "recon: specklab recon's options (specklab recon --help); each rank reads\n"
+               "its own range of the frames, rank 0 writes the outputs.\n"
+               "reprocess: every catalogued run again, one run per rank at a time;\n"
+               "rank 0 writes the catalogue (specklab-mpi reprocess --help).\n");
 }
 
 static int run(mpishare *m, int argc, char **argv)
 {
-    if (argc < 2 || strcmp(argv[1], "recon") != 0) {
+    int reproc = argc >= 2 && !strcmp(argv[1], "reprocess");
+    if (argc < 2 || (strcmp(argv[1], "recon") != 0 && !reproc)) {
         if (mpishare_rank(m) == 0)
             usage(stderr);
         return 2;
+    }
+    if (reproc) {
+        char rname[] = "specklab-mpi reprocess";
+        argv[1] = rname;
+        return reprocess_main(m, argc - 1, argv + 1);
     }
     char name[] = "specklab-mpi recon";
     argv[1] = name;

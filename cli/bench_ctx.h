@@ -10,7 +10,7 @@
 #include "bench_cli.h"
 
 typedef struct bench_args {
-    gboolean quick, paper, speed, skips_report, estimate, keep_data, blind, overwrite;
+    gboolean quick, paper, speed, skips_report, estimate, keep_data, blind, overwrite, mpi;
     char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
     char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
     char *conditions, *md;

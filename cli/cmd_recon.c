@@ -262,12 +262,15 @@ static int write_pngs(const recon_args *a, const outfile out[3], skyfig_opts *f,
 }
 
 /* A rank other than 0 of a split run: its share of the sums, no output
- * (rank 0 writes the image). */
+ * (rank 0 recovers the phases and writes the image). */
 static int recon_follow(const pipeline_opts *o, char **inputs, int ninputs)
 {
     pipeline_result r;
     sl_err e = {0};
-    if (pipeline_run((const char *const *)inputs, ninputs, o, &r, &e) != SL_OK) {
+    int rc = pipeline_run((const char *const *)inputs, ninputs, o, &r, &e);
+    if (rc == SL_EEND) /* its sums are in rank 0's: its part is done */
+        return 0;
+    if (rc != SL_OK) {
         fprintf(stderr, "specklab recon: rank %d: %s\n", o->share->rank, e.msg);
         return e.code == SL_EINVAL ? 2 : 1;
     }

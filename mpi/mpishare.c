@@ -13,6 +13,7 @@
 struct mpishare {
     int rank, size;
     double bytes;
+    double last_s;        /* MPI_Wtime when the last sums were complete */
     pipeline_share hooks;
 };
 
@@ -34,7 +35,7 @@ static int gather_in_order(double *sums, size_t n, int size)
     return SL_OK;
 }
 
-static int reduce(void *ctx, double *sums, size_t n)
+static int reduce(void *ctx, double *sums, size_t n, int last)
 {
     mpishare *m = ctx;
     int rc = SL_OK;
@@ -47,6 +48,10 @@ static int reduce(void *ctx, double *sums, size_t n)
     /* rank 0 out of memory: the others would wait for ever */
     if (rc != SL_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);
+    if (last) { /* only rank 0 goes on: the others' part is done */
+        m->last_s = MPI_Wtime();
+        return m->rank == 0 ? SL_OK : SL_EEND;
+    }
     for (size_t off = 0; off < n; off += PIECE)
         MPI_Bcast(sums + off, piece(n, off), MPI_DOUBLE, 0, MPI_COMM_WORLD);
     return SL_OK;
@@ -77,3 +82,4 @@ int mpishare_rank(const mpishare *m) { return m->rank; }
 int mpishare_size(const mpishare *m) { return m->size; }
 const pipeline_share *mpishare_pipeline(const mpishare *m) { return &m->hooks; }
 double mpishare_bytes(const mpishare *m) { return m->bytes; }
+double mpishare_last_s(const mpishare *m) { return m->last_s; }

@@ -68,18 +68,22 @@ enum pipeline_skip {
  *   reduce: replace sums[0..n) on every process by the element-wise sum
  *           of every process's, added in rank order (pipeline_sums_merge,
  *           once per rank, 0 first) whatever order they arrive in, so the
- *           image depends on the ranges, not on timing;
+ *           image depends on the ranges, not on timing.  last: these are
+ *           the run's final sums and only rank 0 needs their total (the
+ *           others' part is done: they may return SL_EEND, and their
+ *           pipeline_run then stops with SL_EEND, having no image);
  *   agree:  replace buf on every process by rank 0's: decisions (auto's
  *           choice) are taken once, on rank 0.
  * Every process calls them at the same points in the same order; they
  * return SL_OK or an error code, with which the run stops.  What each
  * process computes from the first frames alone (the scale, the detector,
  * the scene probe's crop and frame-quality reference) is the same
- * deterministic function of the same frames everywhere.  Every process
- * ends with the same image and header; the caller writes rank 0's. */
+ * deterministic function of the same frames everywhere.  Rank 0 ends
+ * with the image and header; a process whose hook ends its part early
+ * gets SL_EEND. */
 typedef struct pipeline_share {
     int rank, nranks;
-    int (*reduce)(void *ctx, double *sums, size_t n);
+    int (*reduce)(void *ctx, double *sums, size_t n, int last);
     int (*agree)(void *ctx, void *buf, size_t bytes);
     void *ctx;
 } pipeline_share;

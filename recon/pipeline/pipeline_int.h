@@ -48,6 +48,7 @@ typedef struct stream {
      * the first pass has counted them (counts_whole). */
     const pipeline_share *share;
     int k0, k1;
+    int has_ref;          /* a reference sequence is reduced after this */
     int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
@@ -71,9 +72,12 @@ void stream_expect_passes(stream *s, int passes);
 
 /* A run split over processes (pipeline_share.c; pipeline.h,
  * pipeline_share): stream_share_range sets s's frame range from share
- * (may be NULL: every frame); the others make an accumulator's sums whole
- * (reduce), or buf rank 0's (agree).  Without share they do nothing. */
-void stream_share_range(stream *s, const pipeline_share *share);
+ * (may be NULL: every frame); has_ref: a reference's sums follow this
+ * stream's.  The others make an accumulator's sums whole (reduce), or buf
+ * rank 0's (agree); the bispectrum's and TSM's are the last without a
+ * reference, after which the hook may end a process's part (SL_EEND).
+ * Without share they do nothing. */
+void stream_share_range(stream *s, const pipeline_share *share, int has_ref);
 int stream_share_powspec(stream *s, powspec *p, sl_err *err);
 int stream_share_bispec(stream *s, bispec *b, sl_err *err);
 int stream_share_tsm(stream *s, tsm *t, sl_err *err);

@@ -18,8 +18,9 @@ void pipeline_sums_merge(double *acc, const double *part, size_t n)
         acc[i] += part[i];
 }
 
-void stream_share_range(stream *s, const pipeline_share *share)
+void stream_share_range(stream *s, const pipeline_share *share, int has_ref)
 {
+    s->has_ref = has_ref;
     s->share = share && share->nranks > 1 ? share : NULL;
     s->k0 = 0;
     s->k1 = s->n;
@@ -35,14 +36,23 @@ int stream_leads(const stream *s)
     return !s->share || s->share->rank == 0;
 }
 
-int stream_share_doubles(stream *s, double *v, size_t n, sl_err *err)
+/* The hook; last as pipeline_share's reduce takes it. */
+static int reduce(stream *s, double *v, size_t n, int last, sl_err *err)
 {
     if (!s->share)
         return SL_OK;
-    int rc = s->share->reduce(s->share->ctx, v, n);
+    int rc = s->share->reduce(s->share->ctx, v, n, last);
+    if (rc == SL_EEND && last)
+        return sl_seterr(err, rc, "rank %d: its frames are in rank 0's sums",
+                         s->share->rank);
     return rc == SL_OK ? SL_OK
                        : sl_seterr(err, rc, "rank %d: summing %zu values over %d "
                                    "ranks failed", s->share->rank, n, s->share->nranks);
+}
+
+int stream_share_doubles(stream *s, double *v, size_t n, sl_err *err)
+{
+    return reduce(s, v, n, 0, err);
 }
 
 int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err)
@@ -59,8 +69,10 @@ int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err)
 typedef size_t (*sums_get)(void *h, double *buf);
 typedef void (*sums_load)(void *h, const double *buf);
 
+/* last: the estimator's sums with no reference sequence to follow, the
+ * run's final ones. */
 static int share_sums(stream *s, void *h, sums_get get, sums_load load,
-                      const char *what, sl_err *err)
+                      const char *what, int last, sl_err *err)
 {
     if (!s->share)
         return SL_OK;
@@ -70,7 +82,7 @@ static int share_sums(stream *s, void *h, sums_get get, sums_load load,
         return sl_seterr(err, SL_ENOMEM, "out of memory for the %s's %zu sums",
                          what, n);
     get(h, buf);
-    int rc = stream_share_doubles(s, buf, n, err);
+    int rc = reduce(s, buf, n, last, err);
     if (rc == SL_OK)
         load(h, buf);
     free(buf);
@@ -86,15 +98,15 @@ static void tsm_load(void *h, const double *buf) { tsm_partial_load(h, buf); }
 
 int stream_share_powspec(stream *s, powspec *p, sl_err *err)
 {
-    return share_sums(s, p, ps_get, ps_load, "power spectrum", err);
+    return share_sums(s, p, ps_get, ps_load, "power spectrum", 0, err);
 }
 
 int stream_share_bispec(stream *s, bispec *b, sl_err *err)
 {
-    return share_sums(s, b, bs_get, bs_load, "bispectrum", err);
+    return share_sums(s, b, bs_get, bs_load, "bispectrum", !s->has_ref, err);
 }
 
 int stream_share_tsm(stream *s, tsm *t, sl_err *err)
 {
-    return share_sums(s, t, tsm_get, tsm_load, "projections", err);
+    return share_sums(s, t, tsm_get, tsm_load, "projections", !s->has_ref, err);
 }

@@ -245,7 +245,7 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     s->w = cube_reader_width(s->rd);
     s->h = cube_reader_height(s->rd);
     s->n = cube_reader_nframes(s->rd);
-    stream_share_range(s, o->share);
+    stream_share_range(s, o->share, o->ref_path != NULL);
     s->progress = o->progress;
     s->progress_ctx = o->progress_ctx;
     s->feed_total = 2.0 * s->n; /* until the plan is known */

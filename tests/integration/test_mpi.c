@@ -96,7 +96,7 @@ static int ready(tc *t, tmpdir *d)
 TEST(ranks_agree_for_every_method)
 {
     if (!SL_HAVE_MPI)
-        SKIP("built without MPI: pkg-config has neither ompi-c nor mpi "
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0) "
              "(apt-get install libopenmpi-dev openmpi-bin)");
     tmpdir d;
     if (!ready(t, &d))
@@ -140,7 +140,7 @@ TEST(ranks_agree_for_every_method)
 TEST(split_run_matches_one_process)
 {
     if (!SL_HAVE_MPI)
-        SKIP("built without MPI: pkg-config has neither ompi-c nor mpi");
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0)");
     tmpdir d;
     if (!ready(t, &d))
         return;
@@ -162,7 +162,7 @@ TEST(split_run_matches_one_process)
 TEST(failing_rank_ends_the_job_named)
 {
     if (!SL_HAVE_MPI)
-        SKIP("built without MPI: pkg-config has neither ompi-c nor mpi");
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0)");
     tmpdir d;
     if (!ready(t, &d))
         return;
@@ -177,5 +177,60 @@ TEST(failing_rank_ends_the_job_named)
     CHECK(strstr(log, "rank 0 of 2 failed"), "no rank named: %s", log);
 }
 
+/* The Slurm example runs outside Slurm too (mpirun: one rank per core)
+ * and gives the one-rank image. */
+TEST(slurm_example_runs)
+{
+    if (!SL_HAVE_MPI)
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0)");
+    tmpdir d;
+    if (!ready(t, &d))
+        return;
+    char a[300], b[300], log[2048];
+    snprintf(a, sizeof a, "%s/one.fits", d.dir);
+    snprintf(b, sizeof b, "%s/slurm.fits", d.dir);
+    int rc1 = sh(&d, "mpirun --oversubscribe -n 1 bin/specklab-mpi recon %s/c.fits -m tsm "
+                 "-o %s -q", d.dir, a);
+    int rc2 = sh(&d, "SPECKLAB_MPI=bin/specklab-mpi bash scripts/slurm/specklab-recon.sbatch "
+                 "%s/c.fits %s -m tsm -q", d.dir, b);
+    log_text(&d, log, sizeof log);
+    int same = 0;
+    double nf = 0, rel = image_diff(a, b, &same, &nf);
+    tmp_remove(&d);
+    CHECK(rc1 == 0 && rc2 == 0, "exits %d, %d: %s", rc1, rc2, log);
+    CHECK(rel >= 0 && rel <= TOL_REL, "the sbatch image differs by %.3g of the maximum", rel);
+}
+
+/* bench --mpi: a row per rank count, the sums' size the same for 2 and 4
+ * ranks (each rank sends the whole layout once per reduction) and none
+ * for one, and the model's table; its times are not judged here. */
+TEST(bench_reports_efficiency_and_model)
+{
+    if (!SL_HAVE_MPI)
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0)");
+    tmpdir d;
+    if (!ready(t, &d))
+        return;
+    int rc = sh(&d, "bin/specklab bench --mpi --methods tsm-fourier --sizes 32 --frames 8");
+    char log[8192];
+    log_text(&d, log, sizeof log);
+    tmp_remove(&d);
+    CHECK(rc == 0, "exit %d: %s", rc, log);
+    double mb[3] = {-1, -1, -1};
+    for (int i = 0; i < 3; i++) {
+        char head[32];
+        snprintf(head, sizeof head, "%-12s %5d ", "tsm-fourier", (int[]){1, 2, 4}[i]);
+        const char *row = strstr(log, head);
+        CHECK(row, "no row for %d ranks: %s", (int[]){1, 2, 4}[i], log);
+        double v[6];
+        CHECK(sscanf(row + strlen(head), "%lf %lf %lf %lf %lf%% %lf", &v[0], &v[1], &v[2],
+                     &v[3], &v[4], &v[5]) == 6, "row unreadable: %s", row);
+        mb[i] = v[5];
+    }
+    CHECK(mb[0] == 0 && mb[1] > 0 && mb[1] == mb[2], "sums MB %g %g %g", mb[0], mb[1], mb[2]);
+    CHECK(strstr(log, "model for N nodes") && strstr(log, "\n    64 "), "no model: %s", log);
+}
+
 TC_MAIN(TC_CASE(ranks_agree_for_every_method), TC_CASE(split_run_matches_one_process),
-        TC_CASE(failing_rank_ends_the_job_named))
+        TC_CASE(failing_rank_ends_the_job_named), TC_CASE(slurm_example_runs),
+        TC_CASE(bench_reports_efficiency_and_model))

@@ -183,7 +183,7 @@ static int prepare(tmpdir *d, char *db, char *log, char *msg, size_t nmsg)
 TEST(two_ranks_record_every_run)
 {
     if (!SL_HAVE_MPI)
-        SKIP("built without MPI: pkg-config has neither ompi-c nor mpi "
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0) "
              "(apt-get install libopenmpi-dev openmpi-bin)");
     tmpdir d;
     char db[300], log[300], msg[600] = "";
@@ -203,7 +203,7 @@ TEST(two_ranks_record_every_run)
 TEST(killed_rank_ends_the_job_named_catalogue_consistent)
 {
     if (!SL_HAVE_MPI)
-        SKIP("built without MPI: pkg-config has neither ompi-c nor mpi");
+        SKIP("built without MPI (pkg-config has neither ompi-c nor mpi, or MPI=0)");
     tmpdir d;
     char db[300], log[300], msg[600] = "";
     CHECK(tmp_make(&d), "mkdtemp");

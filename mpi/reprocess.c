@@ -78,8 +78,10 @@ static void reconstruct(const rargs *a, const rjob *j, rresult *r)
     seq img = {res.width, res.height, 1, res.image};
     if (claim_output(a->out_dir, j, a->method, r->fits, sizeof r->fits) != SL_OK)
         snprintf(r->msg, sizeof r->msg, "%s: no free output name", a->out_dir);
-    else if (cube_write(r->fits, &img, &res.meta, &e) != SL_OK)
+    else if (cube_write(r->fits, &img, &res.meta, &e) != SL_OK) {
         snprintf(r->msg, sizeof r->msg, "%s", e.msg);
+        unlink(r->fits); /* no row will name it */
+    }
     else
         r->ok = 1;
     const pipeline_binary *b = &res.binary;

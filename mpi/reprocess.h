@@ -11,7 +11,10 @@
  * the output directory and send rank 0 the numbers for the row.  A rank
  * that dies ends the job (Open MPI's mpirun stops the others and names
  * the rank); a run that fails is reported and the job ends non-zero after
- * the others. */
+ * the others.  With N > 1 rank 0 only hands out and records (its writes
+ * are one at a time anyway).  The cube is reconstructed as `specklab
+ * recon` would, with the binary measured: the calibration runs (darks,
+ * flats, a calibrator) that specklabd's worker looks up are not applied. */
 #ifndef SL_REPROCESS_H
 #define SL_REPROCESS_H
 

@@ -78,7 +78,8 @@ enum pipeline_skip {
  * return SL_OK or an error code, with which the run stops.  What each
  * process computes from the first frames alone (the scale, the detector,
  * the scene probe's crop and frame-quality reference) is the same
- * deterministic function of the same frames everywhere.  Rank 0 ends
+ * deterministic function of the same frames everywhere, and is checked
+ * against rank 0's (agree; SL_EDATA naming the rank when it differs).  Rank 0 ends
  * with the image and header; a process whose hook ends its part early
  * gets SL_EEND. */
 typedef struct pipeline_share {

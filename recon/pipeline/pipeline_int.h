@@ -83,6 +83,11 @@ int stream_share_bispec(stream *s, bispec *b, sl_err *err);
 int stream_share_tsm(stream *s, tsm *t, sl_err *err);
 int stream_share_doubles(stream *s, double *v, size_t n, sl_err *err);
 int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err);
+/* What each process measured from the first frames alone (the scale, the
+ * detector and, once probed, the crop and the frame-quality reference)
+ * against rank 0's: SL_EDATA naming the rank when they differ, since the
+ * sums would then not add up to one run's. */
+int stream_check_agreed(stream *s, sl_err *err);
 /* 1 when this process takes the decisions: rank 0, or no share. */
 int stream_leads(const stream *s);
 

@@ -93,7 +93,7 @@ int skip_apply(stream *s, int has_ref, const pipeline_opts *o, int skips,
     if (*photons > 0)
         *photons *= sc->crop_flux_frac;
     probe_counts(s->pb, s->counts); /* the probed frames' verdicts */
-    return SL_OK;
+    return stream_check_agreed(s, err);
 }
 
 /* Split over processes: the verdicts of every process's frames, once the

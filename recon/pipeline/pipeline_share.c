@@ -65,6 +65,30 @@ int stream_agree(stream *s, void *buf, size_t bytes, sl_err *err)
                                    "failed", s->share->rank);
 }
 
+int stream_check_agreed(stream *s, sl_err *err)
+{
+    if (!s->share)
+        return SL_OK;
+    const rawstats_result *d = &s->det;
+    double mine[16] = {s->scale, s->w, s->h, s->det_learnt, d->sat_level, d->sky_level,
+                       d->cx_px, d->cy_px, d->nstuck + d->nhot + d->ndead}, lead[16];
+    size_t n = 9;
+    if (s->pb) {
+        const probe_scene *sc = probe_result(s->pb);
+        const double more[] = {sc->crop_x0, sc->crop_y0, sc->nprobed_kept, sc->flux_med,
+                               sc->sharp_med, sc->plateau_med};
+        memcpy(mine + n, more, sizeof more);
+        n += sizeof more / sizeof more[0];
+    }
+    memcpy(lead, mine, sizeof mine);
+    int rc = stream_agree(s, lead, n * sizeof *lead, err);
+    if (rc == SL_OK && memcmp(lead, mine, n * sizeof *lead) != 0)
+        rc = sl_seterr(err, SL_EDATA, "rank %d: the scale, detector or scene probe "
+                       "measured on the first frames differ from rank 0's",
+                       s->share->rank);
+    return rc;
+}
+
 /* Export, reduce, load back: get(h, NULL) is the count. */
 typedef size_t (*sums_get)(void *h, double *buf);
 typedef void (*sums_load)(void *h, const double *buf);

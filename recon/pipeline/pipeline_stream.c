@@ -261,7 +261,8 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     }
     if ((rc = stream_check_light(s, paths[0], err)) != SL_OK)
         goto close_stream;
-    if (o->prep && (rc = stream_prep(s, o, err)) != SL_OK)
+    if ((o->prep && (rc = stream_prep(s, o, err)) != SL_OK) ||
+        (rc = stream_check_agreed(s, err)) != SL_OK)
         goto close_stream;
     return SL_OK;
 close_stream:

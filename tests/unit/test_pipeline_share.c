@@ -23,10 +23,11 @@
 #define NFRAMES 20
 
 /* The simulator of a binary at 1e4 photons per frame, SIDE^2. */
-static sim *binary_sim(void)
+static sim *binary_sim(uint64_t seed)
 {
     sim_opts so;
     sim_opts_defaults(&so);
+    so.seed = seed;
     so.width = so.height = SIDE;
     so.nframes = NFRAMES;
     so.photons_per_frame = 1e4;
@@ -43,9 +44,9 @@ static sim *binary_sim(void)
 }
 
 /* NFRAMES frames into frames and, with path, a cube with SIMPHOT. */
-static int simulate(float *frames, const char *path)
+static int simulate(float *frames, const char *path, uint64_t seed)
 {
-    sim *s = binary_sim();
+    sim *s = binary_sim(seed);
     cube_writer *w = NULL;
     cube_meta md;
     cube_meta_init(&md);
@@ -84,7 +85,7 @@ TEST(partial_sums_merge_to_the_whole)
     size_t npx = (size_t)SIDE * SIDE;
     float *fr = malloc(npx * NFRAMES * sizeof *fr), *ia = malloc(npx * sizeof *ia),
           *ib = malloc(npx * sizeof *ib);
-    CHECK(fr && ia && ib && simulate(fr, NULL) == SL_OK, "simulation");
+    CHECK(fr && ia && ib && simulate(fr, NULL, 1) == SL_OK, "simulation");
     powspec_opts po;
     powspec_opts_default(&po);
     po.measure = 0;
@@ -238,7 +239,7 @@ TEST(two_processes_make_the_one_process_image)
     float *fr = malloc((size_t)SIDE * SIDE * NFRAMES * sizeof *fr);
     CHECK(fr && tmp_make(&d), "setup");
     const char *cube = tmp_path(&d, 0, "c.fits");
-    int sim_rc = simulate(fr, cube);
+    int sim_rc = simulate(fr, cube, 1);
     free(fr);
     static const char *const cfg[][2] = {
         {"direct", "none"}, {"direct", "all"}, {"tsm", "none"}, {"tsm-fourier", "all"},
@@ -260,4 +261,48 @@ TEST(two_processes_make_the_one_process_image)
     }
 }
 
-TC_MAIN(TC_CASE(partial_sums_merge_to_the_whole), TC_CASE(two_processes_make_the_one_process_image))
+/* Two ranks given different cubes of one size: rank 1 sees that its
+ * first frames do not say what rank 0's say and stops, naming itself;
+ * rank 0 then fails on the lost peer instead of waiting for ever. */
+TEST(ranks_that_disagree_stop)
+{
+    tmpdir d;
+    float *fr = malloc((size_t)SIDE * SIDE * NFRAMES * sizeof *fr);
+    CHECK(fr && tmp_make(&d), "setup");
+    const char *a = tmp_path(&d, 0, "a.fits"), *b = tmp_path(&d, 1, "b.fits");
+    int sim_rc = simulate(fr, a, 1);
+    if (sim_rc == SL_OK)
+        sim_rc = simulate(fr, b, 2);
+    free(fr);
+    int sv[2];
+    CHECK(sim_rc == SL_OK && socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "setup");
+    fflush(NULL);
+    pid_t child = fork();
+    pair p = {child == 0 ? 1 : 0, child == 0 ? sv[1] : sv[0], {0}};
+    close(child == 0 ? sv[0] : sv[1]);
+    p.hooks = (pipeline_share){p.rank, 2, pair_reduce, pair_agree, &p};
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.method = PIPE_TSM;
+    o.fftw_measure = 0;
+    o.share = &p.hooks;
+    pipeline_result r;
+    sl_err e = {0};
+    const char *cube = child == 0 ? b : a;
+    int rc = pipeline_run(&cube, 1, &o, &r, &e);
+    if (child == 0) {
+        close(p.fd);
+        _exit(rc == SL_EDATA && strstr(e.msg, "rank 1") && strstr(e.msg, "rank 0's") ? 0 : 1);
+    }
+    close(p.fd);
+    int st = 0;
+    waitpid(child, &st, 0);
+    if (rc == SL_OK)
+        pipeline_result_clear(&r);
+    tmp_remove(&d);
+    CHECK(WIFEXITED(st) && WEXITSTATUS(st) == 0, "rank 1 did not refuse its frames (status %d)", st);
+    CHECK(rc != SL_OK, "rank 0 made an image of two different cubes");
+}
+
+TC_MAIN(TC_CASE(partial_sums_merge_to_the_whole), TC_CASE(two_processes_make_the_one_process_image),
+        TC_CASE(ranks_that_disagree_stop))

@@ -71,8 +71,9 @@ int stream_check_agreed(stream *s, sl_err *err)
         return SL_OK;
     const rawstats_result *d = &s->det;
     double mine[16] = {s->scale, s->w, s->h, s->det_learnt, d->sat_level, d->sky_level,
-                       d->cx_px, d->cy_px, d->nstuck + d->nhot + d->ndead}, lead[16];
-    size_t n = 9;
+                       d->sky_rms, d->cx_px, d->cy_px, d->nstuck + d->nhot + d->ndead},
+           lead[16];
+    size_t n = 10;
     if (s->pb) {
         const probe_scene *sc = probe_result(s->pb);
         const double more[] = {sc->crop_x0, sc->crop_y0, sc->nprobed_kept, sc->flux_med,

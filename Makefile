@@ -43,6 +43,9 @@ drv_cflags   = $(shell $(PKG) --cflags $(DRV_PKGS) 2>/dev/null)
 drv_libs     = $(shell $(PKG) --libs $(DRV_PKGS) 2>/dev/null)
 tdrv_cflags  = $(shell $(PKG) --cflags $(TEST_DRV_PKGS) 2>/dev/null)
 tdrv_libs    = $(shell $(PKG) --libs $(TEST_DRV_PKGS) 2>/dev/null)
+# The U3V mock camera serves its device from a umockdev testbed.
+mock_cflags  = $(shell $(PKG) --cflags umockdev-1.0 2>/dev/null)
+mock_libs_fake-u3v = $(shell $(PKG) --libs umockdev-1.0 2>/dev/null)
 schema_cflags = $(shell $(PKG) --cflags $(SCHEMA_PKGS) 2>/dev/null)
 schema_libs   = $(shell $(PKG) --libs $(SCHEMA_PKGS) 2>/dev/null)
 daemon_cflags = $(shell $(PKG) --cflags $(DAEMON_PKGS) 2>/dev/null)
@@ -96,8 +99,13 @@ CLI_MAIN  := $(BUILD)/cli/main.o
 
 # mocks/NAME/*.c -> bin/specklab-NAME: separate programs that speak the
 # real protocols on loopback (tests and the demo only).
-MOCK_DIRS := $(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c))))
+# mocks/camsrc is no program: the camera mocks' shared frame source (the
+# simulator renderer, the stage poll, the model options), an archive each
+# mock links (only the members it uses are pulled in).
+MOCK_DIRS := $(filter-out camsrc,$(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c)))))
 MOCK_BIN  := $(MOCK_DIRS:%=$(BIN)/specklab-%)
+CAMSRC_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard mocks/camsrc/*.c))
+CAMSRC_LIB := $(BUILD)/libcamsrc.a
 
 TEST_SRC  := $(wildcard tests/unit/test_*.c)
 TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%) $(TFIG_BIN)
@@ -161,12 +169,15 @@ $(DRV_LIB): $(DRV_OBJ)
 
 $(BUILD)/mocks/%.o: mocks/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers $(recon_cflags) $(drv_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc $(recon_cflags) $(drv_cflags) $(mock_cflags) -c $< -o $@
 
 .SECONDEXPANSION:
-$(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(RECON_LIB)
+$(CAMSRC_LIB): $(CAMSRC_OBJ)
+	rm -f $@ && ar rcs $@ $^
+
+$(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(CAMSRC_LIB) $(RECON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(RECON_LIB) $(recon_libs) $(drv_libs)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(CAMSRC_LIB) $(RECON_LIB) $(recon_libs) $(drv_libs) $(mock_libs_$*)
 
 $(BUILD)/schema/catalog_res.c: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)
 	@mkdir -p $(dir $@)

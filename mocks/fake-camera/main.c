@@ -77,74 +77,9 @@ static gboolean on_drop_control(gpointer data)
     return G_SOURCE_CONTINUE;
 }
 
-static int parse_size(const char *text, int *w, int *h, sl_err *e)
-{
-    char *end = NULL;
-    long a = strtol(text, &end, 10), b = a;
-    if (end != text && (*end == 'x' || *end == 'X')) {
-        const char *rest = end + 1;
-        b = strtol(rest, &end, 10);
-        if (end == rest)
-            b = -1;
-    }
-    if (end == text || *end || a < 8 || b < 8 || a > 4096 || b > 4096)
-        return sl_seterr(e, SL_EINVAL, "--size '%s': expected N or WxH, 8..4096", text);
-    *w = (int)a;
-    *h = (int)b;
-    return SL_OK;
-}
-
-/* "inf,0.25,0.15": one r0 per screen slot; inf/open = no turbulence. */
-static int parse_r0(const char *text, fakecam_model *m, sl_err *e)
-{
-    gchar **v = g_strsplit(text, ",", -1);
-    int n = 0, rc = SL_OK;
-    for (; v[n] && rc == SL_OK; n++) {
-        char *s = g_strstrip(v[n]), *end = NULL;
-        if (n >= FAKECAM_MAX_SLOTS) {
-            rc = sl_seterr(e, SL_EINVAL, "--screen-r0: at most %d slots", FAKECAM_MAX_SLOTS);
-        } else if (!g_ascii_strcasecmp(s, "inf") || !g_ascii_strcasecmp(s, "open")) {
-            m->r0_m[n] = INFINITY;
-        } else {
-            m->r0_m[n] = g_ascii_strtod(s, &end);
-            if (end == s || *end || !(m->r0_m[n] > 0) || !isfinite(m->r0_m[n]))
-                rc = sl_seterr(e, SL_EINVAL, "--screen-r0: '%s' is not an r0 in metres "
-                               "(or inf)", s);
-        }
-    }
-    g_strfreev(v);
-    if (rc == SL_OK && n == 0)
-        rc = sl_seterr(e, SL_EINVAL, "--screen-r0: no slots");
-    m->n_screens = n;
-    return rc;
-}
-
-static int load_masks(const char *text, mask **masks, int *n, sl_err *e)
-{
-    gchar **v = g_strsplit(text, ",", -1);
-    int rc = SL_OK;
-    *n = 0;
-    for (int i = 0; v[i] && rc == SL_OK; i++) {
-        char *s = g_strstrip(v[i]);
-        if (*n >= FAKECAM_MAX_SLOTS)
-            rc = sl_seterr(e, SL_EINVAL, "--mask-slots: at most %d slots", FAKECAM_MAX_SLOTS);
-        else if ((rc = fakecam_mask(s, &masks[*n], e)) == SL_OK)
-            (*n)++;
-    }
-    g_strfreev(v);
-    if (rc == SL_OK && *n == 0)
-        rc = sl_seterr(e, SL_EINVAL, "--mask-slots: no slots");
-    return rc;
-}
-
+/* The rest of the model, after fakecam_model_from_args. */
 static int build_model(const opts *o, fakecam_model *m, sl_err *e)
 {
-    fakecam_model_defaults(m);
-    int rc = parse_size(o->size, &m->sensor_w, &m->sensor_h, e);
-    if (rc == SL_OK)
-        rc = parse_r0(o->screen_r0, m, e);
-    if (rc != SL_OK)
-        return rc;
     m->wavelength_m = o->wavelength_nm * 1e-9;
     m->plate_scale_arcsec = o->plate_scale > 0 ? o->plate_scale
                             : fakecam_default_plate_scale() * o->wavelength_nm / 633.0;
@@ -330,7 +265,7 @@ int main(int argc, char **argv)
     g_option_context_add_main_entries(ctx, entries, NULL);
     g_option_context_set_description(ctx,
         "Frames: the binary laser star through the phase screen and mask in the beam\n"
-        "(recon's simulator; mocks/fake-camera/fakecam.h defines each frame exactly:\n"
+        "(recon's simulator; mocks/camsrc/fakecam.h defines each frame exactly:\n"
         "frame id F renders simulator frame F mod 65536).  Serves GVCP on UDP 3956:\n"
         "one camera per network namespace.  Prints 'READY ADDRESS SERIAL' when serving.");
     GError *ge = NULL;
@@ -354,7 +289,9 @@ int main(int argc, char **argv)
     o->size = o->size ? o->size : g_strdup("128x128");
     o->screen_r0 = o->screen_r0 ? o->screen_r0 : g_strdup("inf,0.25,0.15,0.10,0.07,0.05");
     o->mask_slots = o->mask_slots ? o->mask_slots : g_strdup("full,nrm17");
-    if (build_model(o, &m, &e) != SL_OK || load_masks(o->mask_slots, masks, &nmasks, &e) != SL_OK) {
+    if (fakecam_model_from_args(o->size, o->screen_r0, o->mask_slots, &m, masks, &nmasks,
+                                &e) != SL_OK ||
+        build_model(o, &m, &e) != SL_OK) {
         fprintf(stderr, "specklab-fake-camera: %s\n", e.msg);
         for (int i = 0; i < nmasks; i++)
             mask_free(masks[i]);

@@ -14,7 +14,7 @@
  * camera, which has none, by its UDP port appearing in /proc/net/udp),
  * always with a deadline.
  *
- * Pixel truth: mocks/fake-camera/fakecam.h defines every frame as a
+ * Pixel truth: mocks/camsrc/fakecam.h defines every frame as a
  * function of (flags, frame id); the test builds the same simulator and
  * compares pixels exactly.
  */
@@ -44,7 +44,7 @@
 #include "stage_map.h"
 #include "proc_fx.h"
 #include "tcheck.h"
-#include "../../mocks/fake-camera/fakecam.h"
+#include "../../mocks/camsrc/fakecam.h"
 
 #define SENSOR_W 80
 #define SENSOR_H 72

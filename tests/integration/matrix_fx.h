@@ -16,7 +16,7 @@
 #include "stage_map.h"
 
 /* After GLib (recon's `mask` typedef and GLib's parameter names). */
-#include "../../mocks/fake-camera/fakecam.h"
+#include "../../mocks/camsrc/fakecam.h"
 
 static inline const char *mx_str(const char *s)
 {

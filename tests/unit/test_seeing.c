@@ -72,7 +72,7 @@ TEST(mask_orders_screens)
     CHECK(a > b && b > c, "r0 estimates %.3f, %.3f, %.3f for 0.40, 0.15, 0.06 m", a, b, c);
 }
 
-/* The demo's bench (scripts/demo, mocks/fake-camera/fakecam.h): 128^2
+/* The demo's bench (scripts/demo, mocks/camsrc/fakecam.h): 128^2
  * frames at Nyquist for 1.1 m at 633 nm, 17-hole mask, 10 m/s and 50 ms
  * per frame (0.46 D), 100 frames, 1e4 photons, 2 e- read noise, bias 100.
  * r0 read from the frames, against the r0 the screen was made with. */

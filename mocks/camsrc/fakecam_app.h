@@ -49,4 +49,17 @@ void stage_poll_free(stage_poll *p);
  * with a backoff of 100 ms doubling to 2 s. */
 int stage_poll_read(stage_poll *p, beam *out, sl_err *err);
 
+/* ---- model_args.c: option values shared by the camera mocks ---- */
+
+/* --size: "N" or "WxH", 8..4096. */
+int fakecam_parse_size(const char *text, int *w, int *h, sl_err *e);
+/* --screen-r0: "inf,0.25,0.15": r0 [m] per screen slot, inf = open. */
+int fakecam_parse_r0(const char *text, fakecam_model *m, sl_err *e);
+/* --mask-slots: "full,nrm17,closed,FILE"; masks[0..*n) are the caller's. */
+int fakecam_load_masks(const char *text, mask **masks, int *n, sl_err *e);
+/* The model from defaults and the three options above; the masks are the
+ * caller's on success, none is left on failure. */
+int fakecam_model_from_args(const char *size, const char *screen_r0, const char *mask_slots,
+                            fakecam_model *m, mask **masks, int *nmasks, sl_err *e);
+
 #endif

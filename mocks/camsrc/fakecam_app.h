@@ -34,6 +34,11 @@ int renderer_prepare(renderer *r, uint32_t exposure_us, uint32_t gain, sl_err *e
 /* ArvFakeCameraFillPattern: data is the renderer. */
 void renderer_fill(ArvBuffer *buffer, void *data, guint32 exposure_us,
                    guint32 gain, ArvPixelFormat pixel_format);
+/* The same for a camera that frames its own stream (the U3V mock): frame
+ * frame_id at w x h in that format into dst (payload bytes), the ROI
+ * offsets and binning read from the attached fake camera. */
+void renderer_render(renderer *r, uint64_t frame_id, int w, int h, ArvPixelFormat pixel_format,
+                     uint32_t exposure_us, uint32_t gain, unsigned char *dst, size_t payload);
 void renderer_counts(renderer *r, uint64_t *rendered, uint64_t *dark);
 
 /* ---- stage_poll.c: the fake stage, read over Modbus/TCP ---- */

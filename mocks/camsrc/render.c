@@ -184,11 +184,18 @@ void renderer_fill(ArvBuffer *buffer, void *data, guint32 exposure_us,
     /* arv_buffer_get_data reports size 0 inside the callback: the payload
      * comes from the fake camera, which sized the buffer from it. */
     unsigned char *dst = (unsigned char *)arv_buffer_get_data(buffer, NULL);
-    size_t payload = arv_fake_camera_get_payload(r->fake);
-    int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
+    if (dst)
+        renderer_render(r, arv_buffer_get_frame_id(buffer), arv_buffer_get_image_width(buffer),
+                        arv_buffer_get_image_height(buffer), pixel_format, exposure_us, gain,
+                        dst, arv_fake_camera_get_payload(r->fake));
+}
+
+void renderer_render(renderer *r, uint64_t frame_id, int w, int h, ArvPixelFormat pixel_format,
+                     uint32_t exposure_us, uint32_t gain, unsigned char *dst, size_t payload)
+{
     int bpp = pixel_format == ARV_PIXEL_FORMAT_MONO_8 ? 1
               : pixel_format == ARV_PIXEL_FORMAT_MONO_16 ? 2 : 0;
-    if (!dst || w <= 0 || h <= 0)
+    if (w <= 0 || h <= 0)
         return;
     if (bpp == 0 || (size_t)w * h * bpp > payload) {
         memset(dst, 0, payload);   /* formats we do not render: black */
@@ -201,7 +208,7 @@ void renderer_fill(ArvBuffer *buffer, void *data, guint32 exposure_us,
     bx = bx < 1 ? 1 : bx;
     by = by < 1 ? 1 : by;
     beam b = current_beam(r);
-    int k = fakecam_frame_index(arv_buffer_get_frame_id(buffer));
+    int k = fakecam_frame_index(frame_id);
     g_mutex_lock(&r->cache_lock);
     sl_err err = {0};
     sim *s = b.known && !b.moving ? get_sim(r, &b, exposure_us, gain, &err) : NULL;
@@ -209,7 +216,7 @@ void renderer_fill(ArvBuffer *buffer, void *data, guint32 exposure_us,
         r->rendered++;
     } else {
         if (err.msg[0] && strcmp(err.msg, r->last_error) != 0) {
-            fprintf(stderr, "specklab-fake-camera: dark frames: %s\n", err.msg);
+            fprintf(stderr, "specklab camera mock: dark frames: %s\n", err.msg);
             snprintf(r->last_error, sizeof r->last_error, "%s", err.msg);
         }
         render_dark(r);

@@ -2,9 +2,10 @@
  * umockdev testbed.  Its registers and GenICam features are Aravis's
  * ArvFakeCamera behind the U3V bootstrap (u3v_regs.c), its USB side a
  * usbfs ioctl handler (u3v_usb.c), its frames recon's simulator through
- * the renderer the GigE fake camera uses (mocks/camsrc): frame id F
- * holds simulator frame F mod 65536 (mocks/camsrc/fakecam.h), with the
- * screen/mask slots of --screen-slot/--mask-slot.
+ * the renderer the GigE fake camera uses (mocks/camsrc): frame (block)
+ * id F, counted from 1, holds simulator frame F mod 65536
+ * (mocks/camsrc/fakecam.h), with the screen/mask slots of --screen-slot
+ * and --mask-slot (no stage polling: the beam is fixed).
  *
  * Programs see the camera when run under libumockdev-preload.so.0 with
  * UMOCKDEV_DIR set to the testbed: Aravis lists it as a U3V device and
@@ -45,6 +46,7 @@ typedef struct app {
     GThread *thread;
     int stop;
     guint64 sent, dropped;
+    uint64_t block_id;      /* the last frame's, stream thread only */
     GMainLoop *loop;
 } app;
 
@@ -52,30 +54,44 @@ static void put16(uint8_t *p, uint32_t v) { p[0] = (uint8_t)v; p[1] = (uint8_t)(
 static void put32(uint8_t *p, uint32_t v) { put16(p, v); put16(p + 2, v >> 16); }
 static void put64(uint8_t *p, uint64_t v) { put32(p, (uint32_t)v); put32(p + 4, (uint32_t)(v >> 32)); }
 
+/* What one frame is: the features at the time it starts. */
+typedef struct frame_desc {
+    uint64_t id, ts_ns;
+    guint32 w, h, x, y, format, exposure_us, gain;
+    size_t payload;
+} frame_desc;
+
+static guint32 reg(ArvFakeCamera *fake, guint32 address)
+{
+    guint32 v = 0;
+    arv_fake_camera_read_register(fake, address, &v);
+    return v;
+}
+
 /* The U3V leader (image payload) and trailer of one frame. */
-static void leader(uint8_t *b, ArvBuffer *buf)
+static void leader(uint8_t *b, const frame_desc *f)
 {
     memset(b, 0, LEADER_SIZE);
     put32(b, 0x4C563355u);                 /* "U3VL" */
     put16(b + 6, LEADER_SIZE);
-    put64(b + 8, arv_buffer_get_frame_id(buf));
+    put64(b + 8, f->id);
     put16(b + 18, 0x0001);                 /* payload type: image */
-    put64(b + 20, arv_buffer_get_timestamp(buf));
-    put32(b + 28, arv_buffer_get_image_pixel_format(buf));
-    put32(b + 32, (uint32_t)arv_buffer_get_image_width(buf));
-    put32(b + 36, (uint32_t)arv_buffer_get_image_height(buf));
-    put32(b + 40, (uint32_t)arv_buffer_get_image_x(buf));
-    put32(b + 44, (uint32_t)arv_buffer_get_image_y(buf));
+    put64(b + 20, f->ts_ns);
+    put32(b + 28, f->format);
+    put32(b + 32, f->w);
+    put32(b + 36, f->h);
+    put32(b + 40, f->x);
+    put32(b + 44, f->y);
 }
 
-static void trailer(uint8_t *b, ArvBuffer *buf, size_t payload)
+static void trailer(uint8_t *b, const frame_desc *f)
 {
     memset(b, 0, TRAILER_SIZE);
     put32(b, 0x54563355u);                 /* "U3VT" */
     put16(b + 6, TRAILER_SIZE);
-    put64(b + 8, arv_buffer_get_frame_id(buf));
-    put64(b + 20, payload);                /* valid payload size */
-    put32(b + 28, (uint32_t)arv_buffer_get_image_height(buf));
+    put64(b + 8, f->id);
+    put64(b + 20, f->payload);             /* valid payload size */
+    put32(b + 28, f->h);
 }
 
 static int streaming(app *a)
@@ -84,30 +100,33 @@ static int streaming(app *a)
            arv_fake_camera_get_acquisition_status(a->fake);
 }
 
-/* One frame when the host has the stream on and acquisition started; a
- * frame that does not fit the queue is dropped whole (the host sees a
- * frame-id gap, as with a camera whose host stopped reading). */
-static void send_frame(app *a, ArvBuffer **buf)
+/* One frame; U3V block ids are 64-bit and count from 1 per process (they
+ * never wrap, unlike GigE Vision 1's 16-bit ids).  A frame that does not
+ * fit the queue is dropped whole: the host sees an id gap, as with a
+ * camera whose host stopped reading. */
+static void send_frame(app *a, GByteArray *pixels)
 {
-    size_t payload = arv_fake_camera_get_payload(a->fake);
-    size_t have = 0;
-    if (*buf)
-        arv_buffer_get_data(*buf, &have);
-    if (!*buf || have != payload) {
-        g_clear_object(buf);
-        *buf = arv_buffer_new(payload, NULL);
-    }
-    arv_fake_camera_fill_buffer(a->fake, *buf, NULL);
+    frame_desc f = {++a->block_id, (uint64_t)g_get_monotonic_time() * 1000u,
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_WIDTH),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_X_OFFSET),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_Y_OFFSET),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US),
+                    reg(a->fake, ARV_FAKE_CAMERA_REGISTER_GAIN_RAW),
+                    arv_fake_camera_get_payload(a->fake)};
+    g_byte_array_set_size(pixels, (guint)f.payload);
+    renderer_render(a->r, f.id, (int)f.w, (int)f.h, f.format, f.exposure_us, f.gain,
+                    pixels->data, f.payload);
     if (u3v_usb_stream_queued(a->usb) + 3 > STREAM_MAX_UNITS) {
         a->dropped++;
         return;
     }
     uint8_t head[LEADER_SIZE], tail[TRAILER_SIZE];
-    leader(head, *buf);
-    trailer(tail, *buf, payload);
-    const void *data = arv_buffer_get_data(*buf, NULL);
+    leader(head, &f);
+    trailer(tail, &f);
     if (u3v_usb_stream_push(a->usb, head, sizeof head, STREAM_MAX_UNITS) == 0 &&
-        u3v_usb_stream_push(a->usb, data, payload, STREAM_MAX_UNITS) == 0 &&
+        u3v_usb_stream_push(a->usb, pixels->data, f.payload, STREAM_MAX_UNITS) == 0 &&
         u3v_usb_stream_push(a->usb, tail, sizeof tail, STREAM_MAX_UNITS) == 0)
         a->sent++;
 }
@@ -115,7 +134,7 @@ static void send_frame(app *a, ArvBuffer **buf)
 static gpointer stream_main(gpointer data)
 {
     app *a = data;
-    ArvBuffer *buf = NULL;
+    GByteArray *pixels = g_byte_array_new();
     while (!g_atomic_int_get(&a->stop)) {
         if (!streaming(a)) {
             u3v_usb_stream_flush(a->usb);
@@ -124,9 +143,9 @@ static gpointer stream_main(gpointer data)
         }
         arv_fake_camera_wait_for_next_frame(a->fake);
         if (streaming(a))
-            send_frame(a, &buf);
+            send_frame(a, pixels);
     }
-    g_clear_object(&buf);
+    g_byte_array_unref(pixels);
     return NULL;
 }
 

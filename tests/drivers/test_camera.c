@@ -44,15 +44,7 @@
 #include "stage_map.h"
 #include "proc_fx.h"
 #include "tcheck.h"
-#include "../../mocks/camsrc/fakecam.h"
-
-#define SENSOR_W 80
-#define SENSOR_H 72
-#define ROI_X 8
-#define ROI_Y 4
-#define ROI_W 64
-#define ROI_H 64
-#define NPX ((size_t)ROI_W * ROI_H)
+#include "camtruth_fx.h"
 
 /* Run to completion (its own timeouts bound it): the exit status. */
 static int run_wait(char *const argv[], int quiet)
@@ -83,58 +75,6 @@ static int start_fake(fx_proc *p, const char *extra1, const char *extra2, const 
     return 0;
 }
 
-/* ---- the simulator's truth ---------------------------------------------- */
-
-typedef struct truth {
-    fakecam_model m;
-    mask *msk;
-    scene *sc;
-    sim *s;
-    float sensor[SENSOR_W * SENSOR_H];
-    unsigned char packed[2 * NPX];
-} truth;
-
-/* What our fake camera renders for start_fake's flags at screen slot
- * `screen`, mask "full", with that ExposureTime and Gain. */
-static int truth_new(truth *tr, int screen, uint32_t exposure_us, uint32_t gain_db, char *err,
-                     size_t n)
-{
-    sl_err e = {0};
-    memset(tr, 0, sizeof *tr);
-    fakecam_model_defaults(&tr->m);
-    tr->m.sensor_w = SENSOR_W;
-    tr->m.sensor_h = SENSOR_H;
-    tr->m.seed = 11;
-    sim_opts o;
-    fakecam_sim_opts(&tr->m, screen, exposure_us, gain_db, &o);
-    if (fakecam_mask("full", &tr->msk, &e) != SL_OK || fakecam_scene(&tr->m, &tr->sc, &e) != SL_OK ||
-        sim_new(&tr->s, &o, tr->msk, tr->sc, &e) != SL_OK) {
-        snprintf(err, n, "%s", e.msg);
-        return -1;
-    }
-    return 0;
-}
-
-static void truth_free(truth *tr)
-{
-    sim_free(tr->s);
-    mask_free(tr->msk);
-    scene_free(tr->sc);
-}
-
-/* Pixels of the ROI frame with this id that differ from the rendering. */
-static long truth_diff(truth *tr, uint64_t frame_id, const uint16_t *pix)
-{
-    if (sim_frame(tr->s, fakecam_frame_index(frame_id), tr->sensor) != SL_OK)
-        return -1;
-    fakecam_readout(tr->sensor, SENSOR_W, SENSOR_H, ROI_X, ROI_Y, ROI_W, ROI_H, 1, 1, 2,
-                    tr->packed);
-    long bad = 0;
-    for (size_t i = 0; i < NPX; i++)
-        bad += pix[i] != (tr->packed[2 * i] | tr->packed[2 * i + 1] << 8);
-    return bad;
-}
-
 /* One of our fake cameras (start_fake's flags plus x1..x3) and our camera
  * on it: Mono16, the ROI, fps, started with nbuf buffers; room for nslot
  * frames in pix; tr is the truth of screen slot `screen`. */
@@ -150,7 +90,6 @@ typedef struct session {
 static int session_open(session *s, size_t nslot, int screen, double fps, int nbuf,
                         const char *x1, const char *x2, const char *x3)
 {
-    sl_err e = {0};
     memset(s, 0, sizeof *s);
     s->fake.pid = -1;
     s->tr = calloc(1, sizeof *s->tr);
@@ -162,26 +101,13 @@ static int session_open(session *s, size_t nslot, int screen, double fps, int nb
     if (start_fake(&s->fake, x1, x2, x3) != 0)
         return snprintf(s->err, sizeof s->err, "bin/specklab-fake-camera did not start "
                         "(run make)"), -1;
-    int rc = camera_open(&s->c, "aravis", "127.0.0.1", &e);
-    if (rc != SL_OK)
-        return snprintf(s->err, sizeof s->err, "%s", e.msg), -1;
-    if ((rc = camera_set_pixel_format(s->c, CAMERA_PIX_MONO16)) == SL_OK &&
-        (rc = camera_set_roi(s->c, ROI_X, ROI_Y, ROI_W, ROI_H)) == SL_OK &&
-        (rc = camera_set_frame_rate_hz(s->c, fps)) == SL_OK)
-        rc = camera_start(s->c, nbuf);
-    if (rc != SL_OK)
-        return snprintf(s->err, sizeof s->err, "%s", camera_errmsg(s->c)), -1;
-    return 0;
+    return camtruth_open(&s->c, "127.0.0.1", fps, nbuf, s->err, sizeof s->err);
 }
 
 /* Pop into frame slot k of pix; on error the message goes to s->err. */
 static int session_pop(session *s, int timeout_ms, camera_frame *f, size_t k)
 {
-    *f = (camera_frame){.u16 = s->pix + NPX * k, .capacity_px = NPX};
-    int rc = camera_pop(s->c, timeout_ms, f);
-    if (rc != SL_OK)
-        snprintf(s->err, sizeof s->err, "%s", camera_errmsg(s->c));
-    return rc;
+    return camtruth_pop(s->c, s->pix, timeout_ms, f, k, s->err, sizeof s->err);
 }
 
 /* Close the camera before the fake goes (closing talks to it). */

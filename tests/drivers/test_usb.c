@@ -541,33 +541,6 @@ TEST(no_testbed_real_system)
     CHECK(r == SL_OK && n >= 0, "usb_list: %d", r);
 }
 
-/* Re-run this binary with the umockdev preload library (what
- * umockdev-wrapper does).  A sanitized build must keep libasan first in
- * the library list, so it is put in front when this process has it. */
-static void reexec_preloaded(char **argv)
-{
-    char line[1024], asan[1024] = "";
-    FILE *maps = fopen("/proc/self/maps", "r");
-    while (maps && !asan[0] && fgets(line, sizeof line, maps)) {
-        char *p = strchr(line, '/');
-        if (p && strstr(p, "/libasan.so")) {
-            p[strcspn(p, "\n")] = '\0';
-            g_strlcpy(asan, p, sizeof asan);
-        }
-    }
-    if (maps)
-        fclose(maps);
-    const char *old = getenv("LD_PRELOAD");
-    char *pre = g_strdup_printf("%s%s%s%s%s", asan, asan[0] ? ":" : "",
-                                PRELOAD_LIB, old && *old ? ":" : "",
-                                old ? old : "");
-    setenv("LD_PRELOAD", pre, 1);
-    g_free(pre);
-    execv("/proc/self/exe", argv);
-    fprintf(stderr, "test_usb: cannot re-exec under %s: %s\n", PRELOAD_LIB,
-            strerror(errno));
-}
-
 int main(int argc, char **argv)
 {
     static const tc_case cases[] = {
@@ -587,10 +560,7 @@ int main(int argc, char **argv)
     if (argc == 3 && strcmp(argv[1], "--usbfs-child") == 0)
         return child_usbfs();
     /* Once only: if the preload still is not there, the tests skip. */
-    if (!preloaded() && !getenv("SPECKLAB_TEST_USB_REEXEC")) {
-        setenv("SPECKLAB_TEST_USB_REEXEC", "1", 1);
-        reexec_preloaded(argv); /* returns only on failure */
-    }
+    fx_reexec_preloaded(argv, "SPECKLAB_TEST_USB_REEXEC");
     return tc_main(argv[0], argc, argv, cases,
                    (int)(sizeof cases / sizeof cases[0]));
 }

@@ -8,6 +8,7 @@
 #ifndef SL_TEST_USB_MOCK_H
 #define SL_TEST_USB_MOCK_H
 
+#include "preload_fx.h"
 #include "tcheck.h"
 #include "usb.h"
 
@@ -20,7 +21,6 @@
 #include <umockdev.h>
 #include <unistd.h>
 
-#define PRELOAD_LIB "libumockdev-preload.so.0"
 #define NOBODY 65534
 
 /* ---- the USB mock ---- */
@@ -166,24 +166,10 @@ static gboolean on_ioctl(UMockdevIoctlBase *h, UMockdevIoctlClient *c,
     }
 }
 
-/* Is the preload library mapped in this process (not merely named in
- * $LD_PRELOAD: ld.so skips a library it cannot load)? */
-static int preloaded(void)
-{
-    char line[1024];
-    int found = 0;
-    FILE *maps = fopen("/proc/self/maps", "r");
-    while (maps && !found && fgets(line, sizeof line, maps))
-        found = strstr(line, "/libumockdev-preload.so") != NULL;
-    if (maps)
-        fclose(maps);
-    return found;
-}
-
 static int mock_init(mock *m)
 {
     memset(m, 0, sizeof *m);
-    if (!preloaded())
+    if (!fx_preloaded())
         return -1;
     g_mutex_init(&m->lock);
     g_queue_init(&m->urbs);

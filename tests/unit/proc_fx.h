@@ -93,10 +93,11 @@ static inline int fx_enter_netns(char *why, size_t n)
     return rc;
 }
 
-/* Run body in a forked child in a fresh network namespace; its verdict
- * comes back through a pipe within limit_s.  Without namespaces the test
- * is skipped (the fixed GVCP port would collide with other cameras). */
-static inline void fx_in_netns(tc *t, void (*body)(tc *), int limit_s)
+/* Run body in a forked child (in a fresh network namespace when netns);
+ * its verdict comes back through a pipe within limit_s.  Without
+ * namespaces the test is skipped (the fixed GVCP port would collide with
+ * other cameras). */
+static inline void fx_run_child(tc *t, void (*body)(tc *), int limit_s, int netns)
 {
     int p[2];
     CHECK(pipe(p) == 0, "pipe: %s", strerror(errno));
@@ -108,7 +109,7 @@ static inline void fx_in_netns(tc *t, void (*body)(tc *), int limit_s)
         tc ct = {0};
         char why[256];
         close(p[0]);
-        if (fx_enter_netns(why, sizeof why) != 0)
+        if (netns && fx_enter_netns(why, sizeof why) != 0)
             tc_note(&ct, 1, __FILE__, __LINE__, "", "no private network namespace: %s", why);
         else
             body(&ct);
@@ -143,6 +144,18 @@ static inline void fx_in_netns(tc *t, void (*body)(tc *), int limit_s)
                  WIFSIGNALED(st) ? "died of signal" : "exited",
                  WIFSIGNALED(st) ? WTERMSIG(st) : WEXITSTATUS(st));
     }
+}
+
+static inline void fx_in_netns(tc *t, void (*body)(tc *), int limit_s)
+{
+    fx_run_child(t, body, limit_s, 1);
+}
+
+/* Run body in a forked child (a fresh Aravis, libusb and GLib state for
+ * each test), with the same verdict pipe and deadline. */
+static inline void fx_in_child(tc *t, void (*body)(tc *), int limit_s)
+{
+    fx_run_child(t, body, limit_s, 0);
 }
 
 /* ---- processes --------------------------------------------------------------- */

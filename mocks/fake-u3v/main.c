@@ -17,6 +17,7 @@
  * "PLUGGED DEVICE_NODE" (a new address, as after a real re-plug).  EOF on
  * stdin, SIGTERM or SIGINT stop it (exit 0); the testbed is removed.
  */
+#include <errno.h>
 #include <glib-unix.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -223,6 +224,37 @@ static int start_device(app *a, sl_err *e)
     return rc;
 }
 
+/* The testbed's uevents are sent through libudev, which must see the
+ * testbed's /sys: like umockdev-wrapper, run under the preload library
+ * (re-executed once; a testbed made in a process without it cannot
+ * announce plugs and unplugs). */
+static void reexec_preloaded(char **argv)
+{
+    static const char lib[] = "libumockdev-preload.so.0";
+    char line[1024], asan[1024] = "";
+    int found = 0;
+    FILE *maps = fopen("/proc/self/maps", "r");
+    while (maps && fgets(line, sizeof line, maps)) {
+        char *p = strchr(line, '/');
+        found |= p && strstr(p, "/libumockdev-preload.so") != NULL;
+        if (p && !asan[0] && strstr(p, "/libasan.so")) {   /* a sanitized build: first */
+            p[strcspn(p, "\n")] = '\0';
+            g_snprintf(asan, sizeof asan, "%s:", p);
+        }
+    }
+    if (maps)
+        fclose(maps);
+    if (found || getenv("SPECKLAB_FAKE_U3V_REEXEC"))
+        return;
+    setenv("SPECKLAB_FAKE_U3V_REEXEC", "1", 1);
+    const char *old = getenv("LD_PRELOAD");
+    char *pre = g_strdup_printf("%s%s%s%s", asan, lib, old && *old ? ":" : "", old ? old : "");
+    setenv("LD_PRELOAD", pre, 1);
+    g_free(pre);
+    execv("/proc/self/exe", argv);
+    fprintf(stderr, "specklab-fake-u3v: cannot re-exec under %s: %s\n", lib, g_strerror(errno));
+}
+
 static int serve(app *a, const fakecam_model *m, mask **masks, int nmasks)
 {
     sl_err e = {0};
@@ -269,6 +301,7 @@ report:
 
 int main(int argc, char **argv)
 {
+    reexec_preloaded(argv);
     app a = {0};
     opts *o = &a.o;
     o->seed = 1, o->screen_slot = 1, o->speed_mbit = 5000, o->node_mode = 0666;

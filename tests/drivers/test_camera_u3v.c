@@ -54,7 +54,7 @@ static int session_open(session *s, size_t nslot, double fps)
         return snprintf(s->err, sizeof s->err, "out of memory"), -1;
     if (truth_new(s->tr, 3, 10000, 0, s->err, sizeof s->err) != 0)
         return -1;
-    if (fx_u3v_start(&s->u3v, NULL, NULL) != 0)
+    if (fx_u3v_start(&s->u3v, NULL) != 0)
         return snprintf(s->err, sizeof s->err, "bin/specklab-fake-u3v did not start "
                         "(run make)"), -1;
     return camtruth_open(&s->c, FX_U3V_ID, fps, 16, s->err, sizeof s->err);
@@ -100,7 +100,7 @@ static void body_listed(tc *t)
 {
     fx_u3v u;
     sl_err e = {0};
-    CHECK(fx_u3v_start(&u, NULL, NULL) == 0, "bin/specklab-fake-u3v did not start (run make)");
+    CHECK(fx_u3v_start(&u, NULL) == 0, "bin/specklab-fake-u3v did not start (run make)");
     camera_info *v = NULL, info = {0};
     int n = 0, found = -1;
     int rc = camera_list("aravis", &v, &n, &e);

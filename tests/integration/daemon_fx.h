@@ -48,7 +48,9 @@
 #include "catalog.h"
 #include "tcheck.h"
 
+#include "preload_fx.h"
 #include "proc_fx.h"
+#include "u3v_fx.h"
 
 /* ---- the bench ----------------------------------------------------------------- */
 
@@ -68,6 +70,11 @@ typedef struct bench {
     char stage_tty[96];
     void (*daemon_pre)(void *);   /* e.g. limits, before exec */
     void *daemon_pre_arg;
+    int cam_u3v;                  /* 1: the camera is bin/specklab-fake-u3v (seed 5,
+                                   * screen slot 1 always in its beam) and the daemon runs
+                                   * under the umockdev preload on its testbed */
+    fx_u3v u3v;
+    char preload[1024];           /* $LD_PRELOAD for the daemon with cam_u3v */
     GPtrArray *keep;              /* JsonNode*, released by bench_down */
     GPtrArray *clients;           /* dc*, closed by bench_down */
     char mnt[2][300];             /* tmpfs mounts (bench_tmpfs), unmounted by bench_down */
@@ -84,7 +91,8 @@ static inline int bench_init(bench *b)
 {
     const char *tmp = getenv("TMPDIR");
     memset(b, 0, sizeof *b);
-    b->stage.pid = b->cam.pid = b->daemon.pid = -1;
+    b->stage.pid = b->cam.pid = b->daemon.pid = b->u3v.p.pid = -1;
+    b->u3v.in = -1;
     snprintf(b->dir, sizeof b->dir, "%s/sl_daemon.XXXXXX", tmp && *tmp ? tmp : "/tmp");
     if (!mkdtemp(b->dir))
         return -1;
@@ -121,8 +129,28 @@ static inline int bench_start_stage(bench *b, const char *const *extra)
     return 0;
 }
 
+static inline void bench_preload_daemon(void *arg)
+{
+    setenv("LD_PRELOAD", arg, 1);
+}
+
+/* The U3V camera; the daemon will see its testbed ($UMOCKDEV_DIR is set
+ * for everything started from now on) through the preload. */
+static inline int bench_start_u3v(bench *b)
+{
+    char *pre = fx_preload_value();
+    snprintf(b->preload, sizeof b->preload, "%s", pre);
+    g_free(pre);
+    b->daemon_pre = bench_preload_daemon;
+    b->daemon_pre_arg = b->preload;
+    const char *extra[] = {"--size", b->cam_size, "--seed", "5", "--screen-slot", "1", NULL};
+    return fx_u3v_start(&b->u3v, extra);
+}
+
 static inline int bench_start_camera(bench *b)
 {
+    if (b->cam_u3v)
+        return bench_start_u3v(b);
     char bin[PATH_MAX], line[256], stage[64];
     snprintf(stage, sizeof stage, "127.0.0.1:%d", b->port);
     char *argv[] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
@@ -174,10 +202,16 @@ static inline int bench_start_daemon(bench *b)
     return 0;
 }
 
-/* Stage, camera, config (extra), daemon. */
-static inline int bench_up(bench *b, const char *const *stage_extra, const char *conf_extra)
+/* Stage, camera, config (extra), daemon; setup (may be NULL) chooses
+ * what the bench is made of, after bench_init. */
+static inline int bench_up(bench *b, void (*setup)(bench *), const char *const *stage_extra,
+                           const char *conf_extra)
 {
-    return bench_init(b) || bench_start_stage(b, stage_extra) || bench_start_camera(b) ||
+    if (bench_init(b) != 0)
+        return -1;
+    if (setup)
+        setup(b);
+    return bench_start_stage(b, stage_extra) || bench_start_camera(b) ||
                    bench_write_config(b, conf_extra) || bench_start_daemon(b)
                ? -1
                : 0;
@@ -235,6 +269,7 @@ static inline void bench_down(bench *b, int failed)
         bench_dump_log(b);
     fx_stop(&b->daemon, SIGTERM, 10);
     fx_stop(&b->cam, SIGTERM, 5);
+    fx_u3v_stop(&b->u3v);
     fx_stop(&b->stage, SIGTERM, 5);
     while (b->nmnt > 0)
         umount2(b->mnt[--b->nmnt], MNT_DETACH);
@@ -381,11 +416,15 @@ static inline void bench_check_stop(tc *t, bench *b)
  * torn down whatever the body's CHECKs do; the daemon's log is printed
  * when the test fails. */
 #define BENCH_TEST(name, limit_s, stage_extra, conf_extra)                    \
+    BENCH_TEST_WITH(name, limit_s, NULL, stage_extra, conf_extra)
+
+/* The same on a bench that setup(bench *) changed after bench_init. */
+#define BENCH_TEST_WITH(name, limit_s, setup, stage_extra, conf_extra)       \
     static void name##_body(tc *t, bench *b);                                 \
     static void name##_run(tc *t)                                             \
     {                                                                         \
         bench b_;                                                             \
-        if (bench_up(&b_, stage_extra, conf_extra) != 0) {                    \
+        if (bench_up(&b_, setup, stage_extra, conf_extra) != 0) {             \
             tc_note(t, 0, __FILE__, __LINE__, "bench_up", "bench did not start " \
                     "(stage, camera or daemon; SL_BIN_DIR?)");                \
             bench_down(&b_, 1);                                               \

@@ -53,18 +53,21 @@ static inline int fx_u3v_line(fx_u3v *u, char *line, size_t n, double limit_s)
 }
 
 /* Start the camera (sensor 80x72, seed 11, screen slot 3, the serial
- * above) plus up to two extra options; 0 when it is ready and
- * $UMOCKDEV_DIR names its testbed. */
-static inline int fx_u3v_start(fx_u3v *u, const char *x1, const char *x2)
+ * above; extra: more options, NULL-terminated, later ones win); 0 when
+ * it is ready and $UMOCKDEV_DIR names its testbed. */
+static inline int fx_u3v_start(fx_u3v *u, const char *const *extra)
 {
     static char bin[PATH_MAX];
-    int fd[2];
+    int fd[2], n = 10;
     memset(u, 0, sizeof *u);
     u->in = -1;
     u->p.pid = -1;
     fx_bin(bin, sizeof bin, "specklab-fake-u3v");
-    char *argv[] = {bin, "--size", "80x72", "--seed", "11", "--screen-slot", "3",
-                    "--serial", FX_U3V_SERIAL, "-q", (char *)x1, (char *)x2, NULL};
+    char *argv[24] = {bin, "--size", "80x72", "--seed", "11", "--screen-slot", "3",
+                      "--serial", FX_U3V_SERIAL, "-q"};
+    for (int i = 0; extra && extra[i] && n < 23; i++)
+        argv[n++] = (char *)extra[i];
+    argv[n] = NULL;
     if (access(bin, X_OK) != 0 || pipe2(fd, O_CLOEXEC) != 0)
         return -1;
     int rc = fx_spawn(&u->p, argv, FX_STDERR, fx_u3v_stdin, &fd[0]);

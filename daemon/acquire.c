@@ -23,6 +23,7 @@
 #include "camlink.h"
 #include "io/cube.h"
 #include "cubefile.h"
+#include "progress.h"
 #include "framelog.h"
 #include "measure/seeing.h"
 
@@ -32,110 +33,6 @@
 /* Control lost mid-run is tried back this many times, each bounded. */
 #define MAX_RECONNECTS 3
 #define RECONNECT_MS 3000
-
-/* The catalogue's progress row during acquisition, written by a helper
- * thread with its own catalogue handle, never by the frame loop.  Why:
- * each write is a synchronous (fsynced) SQLite commit, and on a busy ext4
- * disk that fsync also flushes the cube's dirty pages: `make soak`
- * measured 100-300 ms, longer than the camera's buffer pool lasts (32
- * buffers = 160 ms at 200 Hz), and the frames that arrived meanwhile were
- * dropped (underruns, ~0.5 % of a 10000-frame run).  The loop posts its
- * latest counts (the latest wins); finish() joins the thread before it
- * writes the final counts, so no stale count can land after them.  The
- * row is advisory meanwhile (`run` shows it; a restart recounts the
- * .part), so a failed write is only logged. */
-typedef struct progress_writer {
-    const char *db_path, *uuid;
-    int busy_timeout_ms;      /* the daemon's: a lock is logged, not waited out */
-    GThread *th;              /* NULL: not running (write inline) */
-    GMutex mu;                /* guards the fields below */
-    GCond cv;
-    int stored, failed, posted, stop;
-    int64_t missing;
-    int warned;               /* the helper thread's own */
-} progress_writer;
-
-static gpointer progress_main(gpointer data)
-{
-    progress_writer *p = data;
-    catalog *cat = NULL;
-    sl_err e = {0};
-    catalog_opts co = {p->busy_timeout_ms};
-    if (catalog_open_opts(&cat, p->db_path, &co, &e) != SL_OK) {
-        g_warning("run %s: no catalogue progress during acquisition: %s", p->uuid, e.msg);
-        cat = NULL;
-    }
-    g_mutex_lock(&p->mu);
-    for (;;) {
-        while (!p->posted && !p->stop)
-            g_cond_wait(&p->cv, &p->mu);
-        if (p->stop)          /* finish() writes the final counts itself */
-            break;
-        int stored = p->stored, failed = p->failed;
-        int64_t missing = p->missing;
-        p->posted = 0;
-        g_mutex_unlock(&p->mu);
-        /* Once per run: on a full disk or a locked catalogue every
-         * second's write fails alike. */
-        if (cat && catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK &&
-            !p->warned++)
-            g_warning("run %s: %s (progress not recorded)", p->uuid, catalog_errmsg(cat));
-        g_mutex_lock(&p->mu);
-    }
-    g_mutex_unlock(&p->mu);
-    catalog_close(cat);
-    return NULL;
-}
-
-static void progress_start(progress_writer *p, const char *db_path, int busy_timeout_ms,
-                           const char *uuid)
-{
-    memset(p, 0, sizeof *p);
-    p->db_path = db_path;
-    p->busy_timeout_ms = busy_timeout_ms;
-    p->uuid = uuid;
-    g_mutex_init(&p->mu);
-    g_cond_init(&p->cv);
-    GError *ge = NULL;
-    p->th = g_thread_try_new("progress", progress_main, p, &ge);
-    if (!p->th) {
-        g_warning("run %s: progress thread: %s (writing progress inline)", uuid, ge->message);
-        g_error_free(ge);
-    }
-}
-
-/* Hand the counts over; without the thread, write them here (cat). */
-static void progress_post(progress_writer *p, catalog *cat, int stored, int failed,
-                          int64_t missing)
-{
-    if (!p->th) {
-        if (catalog_run_update_progress(cat, p->uuid, stored, failed, missing) != SL_OK)
-            g_warning("run %s: %s", p->uuid, catalog_errmsg(cat));
-        return;
-    }
-    g_mutex_lock(&p->mu);
-    p->stored = stored, p->failed = failed, p->missing = missing, p->posted = 1;
-    g_cond_signal(&p->cv);
-    g_mutex_unlock(&p->mu);
-}
-
-/* Stop and join (a write in progress completes first); idempotent. */
-static void progress_stop(progress_writer *p)
-{
-    if (p->th) {
-        g_mutex_lock(&p->mu);
-        p->stop = 1;
-        g_cond_signal(&p->cv);
-        g_mutex_unlock(&p->mu);
-        g_thread_join(p->th);
-        p->th = NULL;
-    }
-    if (p->db_path) {
-        g_mutex_clear(&p->mu);
-        g_cond_clear(&p->cv);
-        p->db_path = NULL;
-    }
-}
 
 typedef struct acq {
     runner *r;
@@ -292,6 +189,33 @@ static int start_stream(acq *a)
     return rc;
 }
 
+/* No frame this slice (rc CAMERA_ETIMEOUT or CAMERA_ELOST): 0 to go on
+ * (a timeout within lost_timeout_s, or control taken back), 1 when the
+ * run ends, with the reason.  An unplugged USB camera ends it at once. */
+static int no_frame(acq *a, int rc, gint64 now, gint64 *t_frame, char *reason, size_t rlen)
+{
+    runner *r = a->r;
+    char why[256];
+    if (runner_camera_unplugged(r, rc == CAMERA_ELOST, why, sizeof why)) {
+        snprintf(reason, rlen, "camera unplugged after %d of %d frames: %s", a->stored,
+                 a->sp->frames, why);
+    } else if (rc == CAMERA_ETIMEOUT && now - *t_frame <= r->cfg->lost_timeout_s * 1e6) {
+        return 0;
+    } else if (rc == CAMERA_ELOST && a->reconnects < MAX_RECONNECTS &&
+               take_camera_back(a) == SL_OK) {
+        *t_frame = g_get_monotonic_time();
+        return 0;
+    } else {
+        snprintf(reason, rlen, "camera lost after %d of %d frames: %s", a->stored,
+                 a->sp->frames, rc == CAMERA_ELOST ? camera_errmsg(r->cam) : "no frame for");
+        if (rc == CAMERA_ETIMEOUT)
+            snprintf(reason + strlen(reason), rlen - strlen(reason), " %.1f s",
+                     (now - *t_frame) * 1e-6);
+    }
+    runner_note_camera(r, 0, NULL, reason);
+    return 1;
+}
+
 /* The frame loop.  Returns how it ended, with the reason. */
 static acq_end stream(acq *a, char *reason, size_t rlen)
 {
@@ -315,20 +239,10 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
         }
         int rc = camera_pop(r->cam, POP_SLICE_MS, &fr);
         gint64 now = g_get_monotonic_time();
-        if (rc == CAMERA_ETIMEOUT && now - t_frame <= r->cfg->lost_timeout_s * 1e6)
-            continue;
-        if (rc == CAMERA_ELOST && a->reconnects < MAX_RECONNECTS && take_camera_back(a) == SL_OK) {
-            t_frame = g_get_monotonic_time();
-            continue;
-        }
         if (rc == CAMERA_ETIMEOUT || rc == CAMERA_ELOST) {
-            snprintf(reason, rlen, "camera lost after %d of %d frames: %s", a->stored,
-                     sp->frames, rc == CAMERA_ELOST ? camera_errmsg(r->cam) : "no frame for");
-            if (rc == CAMERA_ETIMEOUT)
-                snprintf(reason + strlen(reason), rlen - strlen(reason), " %.1f s",
-                         (now - t_frame) * 1e-6);
-            runner_note_camera(r, 0, NULL, reason);
-            return ACQ_FAILED;
+            if (no_frame(a, rc, now, &t_frame, reason, rlen))
+                return ACQ_FAILED;
+            continue;
         }
         if (rc != SL_OK && rc != SL_ERANGE) {
             snprintf(reason, rlen, "camera failed after %d of %d frames: %s", a->stored,

@@ -270,13 +270,27 @@ static void answer_aborts(runner *r, const char *uuid)
         catalog_run_clear(&run);
 }
 
-static gpointer thread_main(gpointer data)
+/* A hot-plug event, between runs: a camera that left has its handle
+ * closed (the next run opens afresh); one that arrived is opened. */
+static void camera_event(runner *r, int ev)
 {
-    runner *r = data;
-    camlink_open(r);   /* know the camera before the first run (status, devices) */
+    if (ev == RUNNER_CAM_ARRIVED) {
+        camlink_open(r);
+        return;
+    }
+    camera_close(r->cam);
+    r->cam = NULL;
+}
+
+/* Wait for a run (NULL: stopping); hot-plug events are handled meanwhile,
+ * and every idle tick checks the stage and the camera links.  Returns with
+ * mu held: the run becomes current under the same lock that took it off
+ * the queue (runner_abort finds it in one or the other). */
+static runner_spec *next_run(runner *r)
+{
     for (;;) {
         g_mutex_lock(&r->mu);
-        while (!r->stopping && g_queue_is_empty(&r->queue)) {
+        while (!r->stopping && g_queue_is_empty(&r->queue) && !r->cam_event) {
             if (!g_cond_wait_until(&r->cv, &r->mu, g_get_monotonic_time() + IDLE_CHECK_US)) {
                 g_mutex_unlock(&r->mu);
                 check_stage(r);
@@ -284,7 +298,23 @@ static gpointer thread_main(gpointer data)
                 g_mutex_lock(&r->mu);
             }
         }
-        runner_spec *sp = r->stopping ? NULL : g_queue_pop_head(&r->queue);
+        int ev = r->stopping ? RUNNER_CAM_NONE : r->cam_event;
+        r->cam_event = RUNNER_CAM_NONE;
+        g_mutex_unlock(&r->mu);
+        if (!ev)
+            break;
+        camera_event(r, ev);
+    }
+    g_mutex_lock(&r->mu);
+    return r->stopping ? NULL : g_queue_pop_head(&r->queue);
+}
+
+static gpointer thread_main(gpointer data)
+{
+    runner *r = data;
+    camlink_open(r);   /* know the camera before the first run (status, devices) */
+    for (;;) {
+        runner_spec *sp = next_run(r);
         r->cur = sp;
         r->abort_current = 0;
         if (sp) {
@@ -313,6 +343,53 @@ static gpointer thread_main(gpointer data)
     return NULL;
 }
 
+/* The watch thread's callback: a USB3 Vision camera came or went.  The
+ * configured camera is known by its serial once opened; before that, any
+ * U3V camera arriving is worth an attempt to open. */
+static void usb_event(int arrived, const usb_dev_info *dev, void *userdata)
+{
+    runner *r = userdata;
+    char label[256];
+    usb_dev_label(dev, label, sizeof label);
+    g_mutex_lock(&r->mu);
+    const camera_info *cam = &r->st.camera;
+    int known = cam->serial[0] != '\0', ours = known && !strcmp(dev->serial, cam->serial);
+    int act = 0;
+    if (!arrived && ours && !strcmp(cam->protocol, "USB3Vision")) {
+        snprintf(r->unplugged, sizeof r->unplugged, "USB camera %.200s unplugged", label);
+        r->st.camera_connected = 0;
+        g_strlcpy(r->st.camera_error, r->unplugged, sizeof r->st.camera_error);
+        r->cam_event = RUNNER_CAM_LEFT;
+        act = 1;
+    } else if (arrived && (ours || !known) && !r->st.camera_connected) {
+        r->unplugged[0] = '\0';
+        r->cam_event = RUNNER_CAM_ARRIVED;
+        act = 1;
+    }
+    g_cond_signal(&r->cv);
+    g_mutex_unlock(&r->mu);
+    if (act)
+        g_message("%s %s", label, arrived ? "plugged in: opening the camera" : "unplugged");
+}
+
+int runner_camera_unplugged(runner *r, int probe, char *why, size_t n)
+{
+    char serial[CAMERA_STR_MAX];
+    g_mutex_lock(&r->mu);
+    int gone = r->unplugged[0] != '\0';
+    int usb3 = !strcmp(r->st.camera.protocol, "USB3Vision");
+    snprintf(gone ? why : serial, gone ? n : sizeof serial, "%s",
+             gone ? r->unplugged : r->st.camera.serial);
+    g_mutex_unlock(&r->mu);
+    /* Before the watch thread's event: is it still on the bus?  (A fresh
+     * enumeration: only when control was lost, not on every timeout.) */
+    if (!gone && probe && usb3 && serial[0] && camwatch_present(serial) == 0) {
+        snprintf(why, n, "USB camera (serial %s) is no longer on the bus", serial);
+        gone = 1;
+    }
+    return gone;
+}
+
 /* ---- main-thread API ----------------------------------------------------- */
 
 int runner_new(runner **out, const config *cfg, server *srv, worker *wk, reserve *rs,
@@ -336,6 +413,9 @@ int runner_new(runner **out, const config *cfg, server *srv, worker *wk, reserve
     r->abort_reqs = g_array_new(FALSE, FALSE, sizeof(proto_req));
     r->tap = webtap_new();
     r->th = g_thread_new("acquire", thread_main, r);
+    sl_err e = {0};
+    if (camwatch_new(&r->cw, usb_event, r, &e) != SL_OK)
+        g_message("no USB hot-plug: %s", e.msg);
     *out = r;
     return SL_OK;
 }
@@ -395,6 +475,8 @@ void runner_stop(runner *r)
 {
     if (!r || !r->th)
         return;
+    camwatch_free(r->cw);   /* no event after this */
+    r->cw = NULL;
     g_mutex_lock(&r->mu);
     r->stopping = 1;
     if (r->cur) {

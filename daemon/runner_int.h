@@ -5,6 +5,7 @@
 
 #include <glib.h>
 
+#include "camwatch.h"
 #include "catlock.h"
 #include "runner.h"
 
@@ -32,7 +33,15 @@ struct runner {
     GArray *abort_reqs;        /* proto_req awaiting the current run's end */
     runner_status st;          /* queue field unused here */
     webtap *tap;               /* the web view's frames (never waits) */
+    /* USB hot-plug (camwatch.h): the watch thread posts, the acquisition
+     * thread acts (closes or reopens the camera when idle; a run in hand
+     * fails at once with unplugged as its reason). */
+    camwatch *cw;              /* NULL: no USB hot-plug here */
+    int cam_event;             /* RUNNER_CAM_*, under mu */
+    char unplugged[256];       /* why the camera is gone, "" when not, under mu */
 };
+
+enum { RUNNER_CAM_NONE = 0, RUNNER_CAM_LEFT, RUNNER_CAM_ARRIVED };
 
 /* How an acquisition ended. */
 typedef enum acq_end {
@@ -57,5 +66,9 @@ int runner_aborting(runner *r);
 void runner_note_camera(runner *r, int connected, const camera_info *info, const char *error);
 /* missing < 0: unchanged. */
 void runner_note_progress(runner *r, int acquired, int failed, int64_t missing);
+/* 1 (why filled) when the run's USB camera was unplugged: the watch
+ * thread saw it leave, or (probe) it is a USB3 Vision camera no longer
+ * enumerated.  Then control is not taken back: the run ends at once. */
+int runner_camera_unplugged(runner *r, int probe, char *why, size_t n);
 
 #endif

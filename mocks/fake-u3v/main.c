@@ -47,7 +47,9 @@ typedef struct app {
     GThread *thread;
     int stop;
     guint64 sent, dropped;
-    uint64_t block_id;      /* the last frame's, stream thread only */
+    uint64_t block_id;      /* the last frame's, stream thread only; not reset
+                             * by a re-plug, so ids stay unique in a test */
+    fakecam_model m;
     GMainLoop *loop;
 } app;
 
@@ -67,6 +69,22 @@ static guint32 reg(ArvFakeCamera *fake, guint32 address)
     guint32 v = 0;
     arv_fake_camera_read_register(fake, address, &v);
     return v;
+}
+
+/* Power-up settings: acquisition stopped, ROI the whole --size sensor,
+ * Mono16.  Also on every plug: a re-plugged camera has lost what its
+ * host set (the host re-applies it). */
+static void power_up(ArvFakeCamera *fake, const fakecam_model *m)
+{
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_ACQUISITION, 0);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, (guint32)m->sensor_w);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, (guint32)m->sensor_h);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_X_OFFSET, 0);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_Y_OFFSET, 0);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, (guint32)m->sensor_w);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, (guint32)m->sensor_h);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
+                                   ARV_PIXEL_FORMAT_MONO_16);
 }
 
 /* The U3V leader (image payload) and trailer of one frame. */
@@ -172,6 +190,10 @@ static gboolean on_stdin(GIOChannel *ch, GIOCondition cond, gpointer data)
         u3v_usb_unplug(a->usb);
         reply("UNPLUGGED");
     } else if (strcmp(line, "plug") == 0) {
+        if (!u3v_usb_plugged(a->usb)) {
+            power_up(a->fake, &a->m);
+            u3v_regs_reset(a->regs);
+        }
         if (u3v_usb_plug(a->usb, &e) == SL_OK) {
             char out[128];
             snprintf(out, sizeof out, "PLUGGED %s", u3v_usb_node(a->usb));
@@ -194,17 +216,11 @@ static gboolean on_signal(gpointer data)
     return G_SOURCE_CONTINUE;
 }
 
-/* The fake camera: --size sensor, ROI the whole sensor, Mono16, frames
- * from the renderer. */
+/* The fake camera, powered up, its frames from the renderer. */
 static ArvFakeCamera *make_camera(app *a, const fakecam_model *m)
 {
     ArvFakeCamera *fake = arv_fake_camera_new(a->o.serial);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, (guint32)m->sensor_w);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, (guint32)m->sensor_h);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, (guint32)m->sensor_w);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, (guint32)m->sensor_h);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
-                                   ARV_PIXEL_FORMAT_MONO_16);
+    power_up(fake, m);
     renderer_attach(a->r, fake);
     arv_fake_camera_set_fill_pattern(fake, renderer_fill, a->r);
     return fake;
@@ -261,6 +277,7 @@ static int serve(app *a, const fakecam_model *m, mask **masks, int nmasks)
     int status = 1;
     if (renderer_new(&a->r, m, masks, nmasks, &e) != SL_OK)
         goto report;
+    a->m = *m;
     beam b = {1, 0, a->o.screen_slot, a->o.mask_slot};
     renderer_set_beam(a->r, &b);
     a->fake = make_camera(a, m);

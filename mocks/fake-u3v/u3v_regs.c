@@ -226,6 +226,14 @@ int u3v_regs_command(u3v_regs *r, const uint8_t *cmd, size_t n, uint8_t *ack)
     return flags & GENCP_FLAG_REQUEST_ACK ? len : 0;
 }
 
+void u3v_regs_reset(u3v_regs *r)
+{
+    g_mutex_lock(&r->lock);
+    put32(r->boot + SIRM_BASE + SIRM_CONTROL, 0);
+    memset(r->boot + SIRM_BASE + SIRM_WRITABLE_FIRST, 0, SIRM_WRITABLE_END - SIRM_WRITABLE_FIRST);
+    g_mutex_unlock(&r->lock);
+}
+
 int u3v_regs_stream_enabled(u3v_regs *r)
 {
     g_mutex_lock(&r->lock);

@@ -39,6 +39,9 @@ void u3v_regs_free(u3v_regs *r);
  * when the command asks for no ack, -1 when cmd is no GenCP command. */
 int u3v_regs_command(u3v_regs *r, const uint8_t *cmd, size_t n, uint8_t *ack);
 
+/* Power-up state of the streaming interface: disabled, no transfer
+ * sizes (a re-plugged camera has forgotten its host). */
+void u3v_regs_reset(u3v_regs *r);
 /* The host enabled the stream channel (SIRM control bit 0). */
 int u3v_regs_stream_enabled(u3v_regs *r);
 /* Payload bytes per frame the host was told (SIRM required payload). */

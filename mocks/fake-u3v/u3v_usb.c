@@ -22,6 +22,7 @@
 #define EP_STREAM_IN 0x83
 
 typedef struct urb_rec {
+    UMockdevIoctlClient *client; /* the open file it came on: only it reaps it */
     UMockdevIoctlData *urb;   /* the host's struct usbdevfs_urb */
     GByteArray *data;         /* bytes for the host's buffer, or NULL */
     int data_off;             /* 8 for control (after the setup packet) */
@@ -48,6 +49,7 @@ static void rec_free(urb_rec *r)
     if (!r)
         return;
     umockdev_ioctl_data_unref(r->urb);
+    g_object_unref(r->client);
     if (r->data)
         g_byte_array_unref(r->data);
     g_free(r);
@@ -134,7 +136,7 @@ static void submit_control(u3v_usb *u, urb_rec *r, const uint8_t *setup)
 }
 
 /* Returns the errno to answer the SUBMITURB ioctl with. */
-static int submit(u3v_usb *u, UMockdevIoctlData *arg)
+static int submit(u3v_usb *u, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
 {
     UMockdevIoctlData *ud = umockdev_ioctl_data_resolve(
         arg, 0, sizeof(struct usbdevfs_urb), NULL);
@@ -144,6 +146,7 @@ static int submit(u3v_usb *u, UMockdevIoctlData *arg)
     urb->status = 0;
     urb->actual_length = 0;
     urb_rec *r = g_new0(urb_rec, 1);
+    r->client = g_object_ref(c);
     r->urb = ud;
     int out = urb->type == USBDEVFS_URB_TYPE_CONTROL ||
               (urb->type == USBDEVFS_URB_TYPE_BULK && urb->endpoint == EP_CTRL_OUT);
@@ -185,8 +188,13 @@ static int submit(u3v_usb *u, UMockdevIoctlData *arg)
 static void reap(u3v_usb *u, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
 {
     g_mutex_lock(&u->lock);
-    urb_rec *r = g_queue_pop_head(&u->done);
-    int gone = !u->plugged;
+    urb_rec *r = NULL;
+    for (GList *l = u->done.head; l && !r; l = l->next)
+        if (((urb_rec *)l->data)->client == c) {
+            r = l->data;
+            g_queue_delete_link(&u->done, l);
+        }
+    int gone = !u->plugged || g_strcmp0(umockdev_ioctl_client_get_devnode(c), u->node);
     g_mutex_unlock(&u->lock);
     if (!r) {
         umockdev_ioctl_client_complete(c, -1, gone ? ENODEV : EAGAIN);
@@ -211,11 +219,11 @@ static void reap(u3v_usb *u, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
     rec_free(r);
 }
 
-static int discard_in(u3v_usb *u, GQueue *q, gulong addr)
+static int discard_in(u3v_usb *u, GQueue *q, UMockdevIoctlClient *c, gulong addr)
 {
     for (GList *l = q->head; l; l = l->next) {
         urb_rec *r = l->data;
-        if (r->urb->client_addr == addr) {
+        if (r->client == c && r->urb->client_addr == addr) {
             g_queue_delete_link(q, l);
             finish(u, r, -ENOENT, NULL);
             return 1;
@@ -224,15 +232,25 @@ static int discard_in(u3v_usb *u, GQueue *q, gulong addr)
     return 0;
 }
 
-static int discard(u3v_usb *u, UMockdevIoctlData *arg)
+static int discard(u3v_usb *u, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
 {
     gulong addr = 0;
     memcpy(&addr, arg->data, sizeof addr < (size_t)arg->data_len ? sizeof addr
                                                                   : (size_t)arg->data_len);
     g_mutex_lock(&u->lock);
-    int found = discard_in(u, &u->ctrl_in, addr) || discard_in(u, &u->stream_in, addr);
+    int found = discard_in(u, &u->ctrl_in, c, addr) || discard_in(u, &u->stream_in, c, addr);
     g_mutex_unlock(&u->lock);
     return found ? 0 : EINVAL;
+}
+
+/* A handle opened on the device as it is plugged now; one opened before
+ * an unplug stays stale (ENODEV) even after the re-plug, as in usbfs. */
+static int current(u3v_usb *u, UMockdevIoctlClient *c)
+{
+    g_mutex_lock(&u->lock);
+    int ok = u->plugged && !g_strcmp0(umockdev_ioctl_client_get_devnode(c), u->node);
+    g_mutex_unlock(&u->lock);
+    return ok;
 }
 
 static void answer(UMockdevIoctlClient *c, int e)
@@ -245,16 +263,22 @@ static gboolean on_ioctl(UMockdevIoctlBase *h, UMockdevIoctlClient *c, gpointer 
     u3v_usb *u = userdata;
     UMockdevIoctlData *arg = umockdev_ioctl_client_get_arg(c);
     (void)h;
-    if (!u3v_usb_plugged(u)) {
+    gulong req = umockdev_ioctl_client_get_request(c);
+    int reaping = req == USBDEVFS_REAPURB || req == USBDEVFS_REAPURBNDELAY;
+    /* A handle from before the unplug may still reap what the unplug
+     * completed (-ENODEV), then gets ENODEV for everything: libusb then
+     * ends its transfers as NO_DEVICE instead of waiting for them. */
+    if (!current(u, c) && !reaping) {
         answer(c, ENODEV);
         return TRUE;
     }
-    switch (umockdev_ioctl_client_get_request(c)) {
+    switch (req) {
     case USBDEVFS_GET_CAPABILITIES: {
         /* As current kernels: one URB per transfer whatever its length
          * (libusb otherwise splits it into 16 KB URBs, and a short packet
          * would end only the first). */
-        uint32_t caps = USBDEVFS_CAP_BULK_SCATTER_GATHER | USBDEVFS_CAP_NO_PACKET_SIZE_LIM;
+        uint32_t caps = USBDEVFS_CAP_BULK_SCATTER_GATHER | USBDEVFS_CAP_NO_PACKET_SIZE_LIM |
+                        USBDEVFS_CAP_REAP_AFTER_DISCONNECT;
         UMockdevIoctlData *d = umockdev_ioctl_data_resolve(arg, 0, 4, NULL);
         memcpy(d->data, &caps, 4);
         answer(c, 0);
@@ -272,10 +296,10 @@ static gboolean on_ioctl(UMockdevIoctlBase *h, UMockdevIoctlClient *c, gpointer 
         answer(c, 0);
         return TRUE;
     case USBDEVFS_SUBMITURB:
-        answer(c, submit(u, arg));
+        answer(c, submit(u, c, arg));
         return TRUE;
     case USBDEVFS_DISCARDURB:
-        answer(c, discard(u, arg));
+        answer(c, discard(u, c, arg));
         return TRUE;
     case USBDEVFS_REAPURB:
     case USBDEVFS_REAPURBNDELAY:
@@ -325,8 +349,10 @@ int u3v_usb_plug(u3v_usb *u, sl_err *err)
 {
     if (u3v_usb_plugged(u))
         return SL_OK;
+    g_mutex_lock(&u->lock);
     u->addr++;
     snprintf(u->node, sizeof u->node, "/dev/bus/usb/%03d/%03d", u->id.bus, u->addr);
+    g_mutex_unlock(&u->lock);
     snprintf(u->sys, sizeof u->sys, "/sys/devices/pci0000:00/0000:00:14.0/usb%d/%d-%d",
              u->id.bus, u->id.bus, u->id.port);
     GError *e = NULL;
@@ -394,7 +420,8 @@ void u3v_usb_unplug(u3v_usb *u)
     g_mutex_unlock(&u->lock);
     umockdev_testbed_uevent(u->tb, u->sys, "remove");
     umockdev_testbed_remove_device(u->tb, u->sys);
-    umockdev_testbed_detach_ioctl(u->tb, u->node, NULL);
+    /* The handler stays attached to the old node: detaching it would
+     * leave a host blocked in an ioctl without an answer. */
 }
 
 int u3v_usb_plugged(u3v_usb *u)

@@ -374,16 +374,17 @@ static void usb_event(int arrived, const usb_dev_info *dev, void *userdata)
 
 int runner_camera_unplugged(runner *r, int probe, char *why, size_t n)
 {
-    char serial[CAMERA_STR_MAX];
+    char serial[CAMERA_STR_MAX] = "";
     g_mutex_lock(&r->mu);
     int gone = r->unplugged[0] != '\0';
-    int usb3 = !strcmp(r->st.camera.protocol, "USB3Vision");
-    snprintf(gone ? why : serial, gone ? n : sizeof serial, "%s",
-             gone ? r->unplugged : r->st.camera.serial);
+    if (gone)
+        g_strlcpy(why, r->unplugged, n);
+    else if (!strcmp(r->st.camera.protocol, "USB3Vision"))
+        g_strlcpy(serial, r->st.camera.serial, sizeof serial);
     g_mutex_unlock(&r->mu);
     /* Before the watch thread's event: is it still on the bus?  (A fresh
      * enumeration: only when control was lost, not on every timeout.) */
-    if (!gone && probe && usb3 && serial[0] && camwatch_present(serial) == 0) {
+    if (!gone && probe && serial[0] && camwatch_present(serial) == 0) {
         snprintf(why, n, "USB camera (serial %s) is no longer on the bus", serial);
         gone = 1;
     }

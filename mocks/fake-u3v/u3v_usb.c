@@ -156,7 +156,11 @@ static int submit(u3v_usb *u, UMockdevIoctlClient *c, UMockdevIoctlData *arg)
                                           (gsize)urb->buffer_length, NULL);
     int e = 0;
     g_mutex_lock(&u->lock);
-    if (urb->type == USBDEVFS_URB_TYPE_CONTROL && buf && urb->buffer_length >= 8) {
+    /* Checked again under the lock: an unplug between the ioctl's arrival
+     * and here must not leave this URB parked for ever. */
+    if (!u->plugged || g_strcmp0(umockdev_ioctl_client_get_devnode(c), u->node)) {
+        e = ENODEV;
+    } else if (urb->type == USBDEVFS_URB_TYPE_CONTROL && buf && urb->buffer_length >= 8) {
         submit_control(u, r, buf->data);
     } else if (urb->type == USBDEVFS_URB_TYPE_BULK && urb->endpoint == EP_CTRL_OUT && buf) {
         uint8_t ack[U3V_CMD_MAX];

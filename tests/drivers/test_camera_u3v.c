@@ -132,8 +132,10 @@ static void body_frames(tc *t)
     session s;
     camera_frame fr[N];
     int rc = session_open(&s, N, 200), n = 0;
+    double t0 = fx_now();
     for (; rc == 0 && n < N; n++)
         rc = session_pop(&s, 2000, &fr[n], (size_t)n);
+    double wall = fx_now() - t0;
     camera_stats st = {0};
     if (s.c)
         camera_stats_get(s.c, &st);
@@ -142,6 +144,8 @@ static void body_frames(tc *t)
         check_frames(&s, fr, N, &good, &bad_px, &jumps);
     session_close(&s);
     CHECK(rc == 0, "after %d frames: %s", n, s.err);
+    printf("note: %d frames %dx%d Mono16 over U3V in %.2f s (%.0f fps wall, 200 Hz asked)\n",
+           N, ROI_W, ROI_H, wall, N / wall);
     CHECK(good == N && st.completed == N && st.failed == 0, "%d of %d SUCCESS (stats %llu + %llu)",
           good, N, (unsigned long long)st.completed, (unsigned long long)st.failed);
     CHECK(jumps == 0 && st.id_gaps == 0, "%d jumps in the frame ids", jumps);

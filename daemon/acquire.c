@@ -370,12 +370,60 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
     return end;
 }
 
+/* The rows' sidecar, then the cube, then the catalogue's record of it.
+ * The sidecar first: it holds the room for the FRAMES table, and a run
+ * that cannot have it fails before it writes anything.  The file is
+ * catalogued before its first frame, so a crash at any point leaves a run
+ * that names its partial cube. */
+static int open_files(acq *a, sl_err *e)
+{
+    runner *r = a->r;
+    const runner_spec *sp = a->sp;
+    cube_meta meta;
+    fill_meta(a, &meta);
+    int bitpix = a->cf.pixel_format == CAMERA_PIX_MONO8 ? 8 : CUBE_BITPIX_U16;
+    a->fl_path = framelog_path(a->part);
+    int rc = framelog_create(&a->fl, a->fl_path, (long)sp->frames + max_failed(r, sp) + 2, e);
+    if (rc == SL_OK)
+        rc = cube_writer_open(&a->w, a->part, a->cf.width, a->cf.height, bitpix, &meta, e);
+    if (rc == SL_OK && cube_writer_flush(a->w) != SL_OK)
+        rc = sl_seterr(e, SL_EIO, "%s", cube_writer_errmsg(a->w));
+    catlock_file cf = {sp->uuid, a->part, NULL, 0, 0, 0, 0};
+    char what[80];
+    snprintf(what, sizeof what, "run %s: recording its cube", sp->uuid);
+    if (rc == SL_OK && catlock_write(r->cat, &r->cl, what, catlock_set_file, &cf) != SL_OK)
+        rc = sl_seterr(e, SL_EIO, "%s", catalog_errmsg(r->cat));
+    return rc;
+}
+
+/* The run's r0 from image motion into the catalogue; NAN when there is
+ * none (no star in a dark or a flat) or it could not be recorded. */
+static double record_r0(acq *a)
+{
+    const runner_spec *sp = a->sp;
+    seeing_result sr;
+    int starlit = sp->kind != CATALOG_DARK && sp->kind != CATALOG_FLAT;
+    if (!starlit || !a->see || seeing_result_get(a->see, &sr) != SL_OK ||
+        !isfinite(sr.r0_m) || !(sr.r0_m > 0))
+        return NAN;
+    catalog_r0 m;
+    catalog_r0_init(&m);
+    m.run_uuid = sp->uuid;   /* screen: the run's */
+    m.r0_m = sr.r0_m;
+    m.wavelength_m = a->r->cfg->wavelength_m;
+    m.method = "image-motion";
+    m.r0_err_m = sr.r0_err_m;
+    if (catalog_r0_add(a->r->cat, &m, NULL) == SL_OK)
+        return sr.r0_m;
+    g_warning("run %s: recording r0: %s", sp->uuid, catalog_errmsg(a->r->cat));
+    return NAN;
+}
+
 acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
                     size_t rlen, double *r0_m)
 {
     acq a = {.r = r, .sp = sp};
     sl_err e = {0};
-    cube_meta meta;
     acq_end end = ACQ_FAILED;
     *r0_m = NAN;
     if (camlink_ready(r, sp, &a.cf, &a.info, &e) != SL_OK) {
@@ -400,25 +448,7 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
         g_warning("run %s: no seeing estimate: %s", sp->uuid, e.msg);
         a.see = NULL;
     }
-    fill_meta(&a, &meta);
-    int bitpix = a.cf.pixel_format == CAMERA_PIX_MONO8 ? 8 : CUBE_BITPIX_U16;
-    /* The rows' sidecar first: it holds the room for the FRAMES table, and
-     * a run that cannot have it fails before it writes anything. */
-    a.fl_path = framelog_path(a.part);
-    int rc = framelog_create(&a.fl, a.fl_path, (long)sp->frames + max_failed(r, sp) + 2, &e);
-    /* The file is catalogued before its first frame, so a crash at any
-     * point leaves a run that names its partial cube. */
-    if (rc == SL_OK)
-        rc = cube_writer_open(&a.w, a.part, a.cf.width, a.cf.height, bitpix, &meta, &e);
-    if (rc == SL_OK && cube_writer_flush(a.w) != SL_OK)
-        rc = sl_seterr(&e, SL_EIO, "%s", cube_writer_errmsg(a.w));
-    catlock_file cf = {sp->uuid, a.part, NULL, 0, 0, 0, 0};
-    char what[80];
-    snprintf(what, sizeof what, "run %s: recording its cube", sp->uuid);
-    if (rc == SL_OK &&
-        catlock_write(r->cat, &r->cl, what, catlock_set_file, &cf) != SL_OK)
-        rc = sl_seterr(&e, SL_EIO, "%s", catalog_errmsg(r->cat));
-    if (rc != SL_OK) {
+    if (open_files(&a, &e) != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);
         cube_writer_free(a.w);
         if (a.fl) {   /* no frame was taken: leave no file behind */
@@ -433,23 +463,8 @@ acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reas
     runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
     progress_start(&a.pw, r->cfg->catalog, r->cfg->catalog_busy_timeout_ms, sp->uuid);
     end = finish(&a, stream(&a, reason, rlen), reason, rlen);
-    seeing_result sr;
-    /* no star in a dark or a flat: no r0 */
-    int starlit = sp->kind != CATALOG_DARK && sp->kind != CATALOG_FLAT;
-    if (end == ACQ_COMPLETE && starlit && a.see && seeing_result_get(a.see, &sr) == SL_OK &&
-        isfinite(sr.r0_m) && sr.r0_m > 0) {
-        catalog_r0 m;
-        catalog_r0_init(&m);
-        m.run_uuid = sp->uuid;   /* screen: the run's */
-        m.r0_m = sr.r0_m;
-        m.wavelength_m = r->cfg->wavelength_m;
-        m.method = "image-motion";
-        m.r0_err_m = sr.r0_err_m;
-        if (catalog_r0_add(r->cat, &m, NULL) == SL_OK)
-            *r0_m = sr.r0_m;
-        else
-            g_warning("run %s: recording r0: %s", sp->uuid, catalog_errmsg(r->cat));
-    }
+    if (end == ACQ_COMPLETE)
+        *r0_m = record_r0(&a);
 free_acq:
     framelog_close(a.fl);
     g_free(a.fl_path);

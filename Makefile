@@ -390,11 +390,11 @@ FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/b
 FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c drivers/stage_backend.c drivers/stage_probe.c \
                   recon/base/status.c
-FUZZ_CONFIG_SRC := daemon/config.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
+FUZZ_CONFIG_SRC := daemon/config.c daemon/config_defaults.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
-                     daemon/config.c daemon/webconf.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
+                     daemon/config.c daemon/config_defaults.c daemon/webconf.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
                      recon/pipeline/pipeline_optset.c recon/pipeline/pipeline_check.c \
                      $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_DISPATCH_PKGS := glib-2.0 gio-2.0 gio-unix-2.0 json-glib-1.0 sqlite3 libmodbus
@@ -436,7 +436,7 @@ $(FUZZ_BUILD)/fuzz_dispatch: tests/fuzz/fuzz_dispatch.c $(FUZZ_DISPATCH_SRC) \
 # connection; the runner and the worker are stand-ins in the harness.
 FUZZ_HTTP_SRC := daemon/web.c daemon/webpeek.c daemon/webroute.c daemon/webws.c \
                  daemon/webstate.c daemon/webhist.c daemon/webview.c daemon/webtap.c \
-                 daemon/webfft.c daemon/webpng.c daemon/webconf.c daemon/config.c daemon/proto.c \
+                 daemon/webfft.c daemon/webpng.c daemon/webconf.c daemon/config.c daemon/config_defaults.c daemon/proto.c \
                  recon/pipeline/pipeline_names.c $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)
 FUZZ_HTTP_PKGS := glib-2.0 gio-2.0 json-glib-1.0 sqlite3 libmodbus libsoup-3.0 libpng fftw3
 $(FUZZ_BUILD)/daemon/web_res.o: $(WEB_RES) daemon/webpage.html

@@ -18,81 +18,6 @@
 #include <string.h>
 #include <unistd.h>
 
-static const char defaults_text[] =
-    "# specklabd built-in defaults: the mocks on loopback, data under ./var\n"
-    "[camera]\n"
-    "backend=aravis\n"
-    "address=127.0.0.1\n"
-    "exposure_us=10000\n"
-    "pixel_format=Mono16\n"
-    "# frame_rate_hz=100      (unset: keep the camera's)\n"
-    "# roi=0,0,64,64          (x,y,w,h; unset: the whole sensor)\n"
-    "buffers=32\n"
-    "# the fake camera's default: Nyquist at 633 nm for a 1.1 m pupil\n"
-    "plate_scale_arcsec=0.05934801016109636\n"
-    "wavelength_nm=633\n"
-    "lost_timeout_s=10\n"
-    "# the camera keeps this daemon in control this long without a heartbeat\n"
-    "heartbeat_timeout_ms=6000\n"
-    "max_failed_frames=0\n"
-    "# gain_e_per_adu=1       (at Gain 0 dB; unset: unknown, photon bias from the floor)\n"
-    "# read_noise_e=2         (unset: unknown)\n"
-    "\n"
-    "[stage]\n"
-    "backend=tcp\n"
-    "address=127.0.0.1:1502\n"
-    "unit=1\n"
-    "# device=/dev/ttyUSB0    (rtu)\n"
-    "# baud=19200             (rtu)\n"
-    "# parity=E               (rtu: N, E or O)\n"
-    "move_timeout_ms=15000\n"
-    "settle_ms=250\n"
-    "response_timeout_ms=500\n"
-    "call_timeout_ms=2000\n"
-    "\n"
-    "[screens]\n"
-    "0=open\n1=screen1\n2=screen2\n3=screen3\n4=screen4\n5=screen5\n"
-    "\n"
-    "[masks]\n"
-    "0=full\n1=nrm17\n"
-    "\n"
-    "[paths]\n"
-    "data_dir=./var\n"
-    "# catalog=./var/specklab.db   (empty: DATA_DIR/specklab.db)\n"
-    "\n"
-    "[daemon]\n"
-    "# socket=./var/specklabd.sock (empty: DATA_DIR/specklabd.sock)\n"
-    "reconstruct=auto\n"
-    "projections=0\n"
-    "# TSM phases: corrected (photon-bias-corrected, when cubes carry GAIN) or raw\n"
-    "tsm_phases=corrected\n"
-    "# work a scene does not need: reject,crop,support,angles | all | none\n"
-    "skips=reject,crop,support\n"
-    "# measure (plans timed once, kept in DATA_DIR/fftw-wisdom) or estimate\n"
-    "fftw=measure\n"
-    "max_clients=64\n"
-    "# a connection with no request in hand for this long is closed\n"
-    "client_idle_timeout_ms=30000\n"
-    "# how long a catalogue write waits for another process's lock\n"
-    "catalog_busy_timeout_ms=5000\n"
-    "\n"
-    "[calibration]\n"
-    "# files (FITS image or cube) for every reconstruction; empty: none\n"
-    "# dark=   flat=   flat_dark=   badpix=\n"
-    "# yes: else the nearest done dark and flat runs of the same camera settings\n"
-    "catalogued=yes\n"
-    "\n"
-    "[web]\n"
-    "# listen=127.0.0.1:8080     (HOST:PORT, port 0: any free; unset: no web page)\n"
-    "# yes: a non-loopback listen address is served (no authentication)\n"
-    "allow_remote=no\n"
-    "max_connections=32\n";
-
-const char *config_defaults_text(void)
-{
-    return defaults_text;
-}
-
 static const char *const known_keys[][16] = {
     {"camera", "backend", "address", "exposure_us", "pixel_format",
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
@@ -521,7 +446,7 @@ int config_load(config *c, const char *path, const char *socket_override,
     GError *ge = NULL;
     int rc = SL_OK;
     memset(c, 0, sizeof *c);
-    if (!g_key_file_load_from_data(kf, defaults_text, sizeof defaults_text - 1,
+    if (!g_key_file_load_from_data(kf, config_defaults_text(), (gsize)-1,
                                    G_KEY_FILE_NONE, &ge)) {
         rc = sl_seterr(err, SL_EINVAL, "built-in defaults: %s", ge->message);
         goto free_kf;

@@ -223,6 +223,17 @@ free_renderer:
     return status;
 }
 
+/* String defaults after parsing: GOption replaces a string without
+ * freeing what was there. */
+static void string_defaults(opts *o)
+{
+    o->iface = o->iface ? o->iface : g_strdup("127.0.0.1");
+    o->serial = o->serial ? o->serial : g_strdup("SPECKLE01");
+    o->size = o->size ? o->size : g_strdup("128x128");
+    o->screen_r0 = o->screen_r0 ? o->screen_r0 : g_strdup("inf,0.25,0.15,0.10,0.07,0.05");
+    o->mask_slots = o->mask_slots ? o->mask_slots : g_strdup("full,nrm17");
+}
+
 int main(int argc, char **argv)
 {
     app a = {0};
@@ -282,13 +293,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "specklab-fake-camera: unexpected argument '%s'\n", argv[1]);
         goto free_opts;
     }
-    /* String defaults after parsing: GOption replaces a string without
-     * freeing what was there. */
-    o->iface = o->iface ? o->iface : g_strdup("127.0.0.1");
-    o->serial = o->serial ? o->serial : g_strdup("SPECKLE01");
-    o->size = o->size ? o->size : g_strdup("128x128");
-    o->screen_r0 = o->screen_r0 ? o->screen_r0 : g_strdup("inf,0.25,0.15,0.10,0.07,0.05");
-    o->mask_slots = o->mask_slots ? o->mask_slots : g_strdup("full,nrm17");
+    string_defaults(o);
     if (fakecam_model_from_args(o->size, o->screen_r0, o->mask_slots, &m, masks, &nmasks,
                                 &e) != SL_OK ||
         build_model(o, &m, &e) != SL_OK) {

@@ -2,6 +2,7 @@
  * cube_header.h and cube.h ("The standard header", "WCS"). */
 #include "cube_header.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -266,4 +267,132 @@ void cube_header_write(fitsfile *fp, const cube_meta *m, int width,
     put_wcs(fp, m, width, height, st);
     if (m)
         put_history(fp, m->history, st);
+}
+
+/* ---- reading ------------------------------------------------------------ */
+
+/* FITS string value 'it''s  ' -> it's (trailing blanks are not
+ * significant in FITS strings, leading ones are). */
+static void unquote(const char *val, char out[CUBE_STR_MAX])
+{
+    size_t n = 0;
+    for (const char *p = val + 1; *p && n < CUBE_STR_MAX - 1; p++) {
+        if (*p == '\'' && p[1] != '\'')
+            break;
+        if (*p == '\'')
+            p++;
+        out[n++] = *p;
+    }
+    while (n > 0 && out[n - 1] == ' ')
+        n--;
+    out[n] = '\0';
+}
+
+/* Numeric value text to double; FITS allows a Fortran 'D' exponent. */
+static int parse_num(const char *val, double *out)
+{
+    char buf[FLEN_VALUE];
+    char *end;
+    snprintf(buf, sizeof buf, "%s", val);
+    for (char *p = buf; *p; p++)
+        if (*p == 'D' || *p == 'd')
+            *p = 'E';
+    *out = strtod(buf, &end);
+    while (*end == ' ')
+        end++;
+    return end != buf && *end == '\0';
+}
+
+/* Standard field for key with value text val: 1 taken (or dropped as
+ * unusable), 0 not a standard keyword.  Lenient on purpose: a metadata
+ * quirk (OBJECT = 123, EXPTIME = '0.01') must not make frames unreadable. */
+static int take_standard(cube_meta *m, const char *key, const char *val,
+                         char dtype)
+{
+    char *s = !strcmp(key, "DATE-OBS") ? m->date_obs
+            : !strcmp(key, "INSTRUME") ? m->instrume
+            : !strcmp(key, "OBJECT")   ? m->object
+            : !strcmp(key, "BUNIT")    ? m->bunit : NULL;
+    double *d = !strcmp(key, "EXPTIME")    ? &m->exptime_s
+              : !strcmp(key, "PLTSCALE") ? &m->plate_scale_arcsec
+              : !strcmp(key, "PIXASPCT") ? &m->pixel_aspect
+              : !strcmp(key, "WAVELEN")  ? &m->wavelength_m
+              : !strcmp(key, "RA")       ? &m->ra_deg
+              : !strcmp(key, "DEC")      ? &m->dec_deg : NULL;
+    char txt[CUBE_STR_MAX];
+    if (dtype == 'C')
+        unquote(val, txt);
+    else
+        snprintf(txt, sizeof txt, "%.*s", (int)sizeof txt - 1, val);
+    if (s)
+        memcpy(s, txt, sizeof txt);
+    else if (d && !parse_num(txt, d))
+        m->ndropped++; /* stays NaN */
+    return s || d;
+}
+
+/* Logicals enter as numbers 0/1 (the public setters have no logical);
+ * flag them so that writing restores T/F. */
+static void mark_bool(cube_meta *m, const char *key)
+{
+    for (int i = 0; i < m->nextra; i++)
+        if (strcasecmp(m->extra[i].key, key) == 0)
+            m->extra[i].type = CUBE_KV_BOOL;
+}
+
+/* One header card into m: a standard field, an extra, or skipped. */
+static void take_card(cube_meta *m, const char *key, const char *val,
+                      const char *comment, int compressed)
+{
+    char dtype = 0;
+    int st = 0;
+    if (!strcmp(key, "HISTORY")) {
+        cube_header_take_history(m, comment);
+        return;
+    }
+    if (val[0] == '\0')
+        return; /* other commentary card */
+    /* A tile-compressed image exposes its binary-table keywords. */
+    if (compressed && (key[0] == 'Z' || !strcmp(key, "TFIELDS") ||
+                       !strncmp(key, "TTYPE", 5) || !strncmp(key, "TFORM", 5)))
+        return;
+    fits_get_keytype(val, &dtype, &st);
+    if (take_standard(m, key, val, dtype))
+        return;
+    int rc;
+    char str[CUBE_STR_MAX];
+    double num = dtype == 'L' ? (val[0] == 'T') : 0.0;
+    if (dtype == 'C') {
+        unquote(val, str);
+        rc = cube_meta_set_str(m, key, str, comment);
+    } else if (!st && (dtype == 'L' || parse_num(val, &num))) {
+        rc = cube_meta_set_num(m, key, num, comment);
+    } else {
+        rc = SL_ERANGE; /* complex or unparsable value */
+    }
+    if (rc == SL_OK && dtype == 'L')
+        mark_bool(m, key);
+    if (rc == SL_ERANGE)
+        m->ndropped++;
+    /* SL_EINVAL: structural or unusable name (HIERARCH): not an extra */
+}
+
+int cube_header_read(fitsfile *fp, cube_meta *m, const char *path, sl_err *err)
+{
+    int nkeys = 0, st = 0, rc = SL_OK;
+    cube_meta_init(m);
+    int compressed = fits_is_compressed_image(fp, &st);
+    fits_get_hdrspace(fp, &nkeys, NULL, &st);
+    for (int i = 1; i <= nkeys && !st; i++) {
+        char key[FLEN_KEYWORD], val[FLEN_VALUE], com[FLEN_COMMENT];
+        if (fits_read_keyn(fp, i, key, val, com, &st) == 0)
+            take_card(m, key, val, com, compressed);
+    }
+    if (st) {
+        char msg[FLEN_STATUS];
+        fits_get_errstatus(st, msg);
+        rc = sl_seterr(err, SL_EFORMAT, "%s: cannot read the header (%s)",
+                       path, msg);
+    }
+    return rc;
 }

@@ -22,6 +22,11 @@ int cube_header_is_derived(const char *key);
 void cube_header_write(fitsfile *fp, const cube_meta *m, int width,
                        int height, int with_date_obs, int *st);
 
+/* The metadata of fp's current HDU into m (cube.h: which keywords are
+ * kept, which derived ones dropped); SL_EFORMAT naming path when the
+ * header cannot be read. */
+int cube_header_read(fitsfile *fp, cube_meta *m, const char *path, sl_err *err);
+
 /* One HISTORY card's text read from a file into m (cube.h: at most
  * CUBE_HISTORY_MAX / 2 bytes are kept, the rest counted in ndropped). */
 void cube_header_take_history(cube_meta *m, const char *text);

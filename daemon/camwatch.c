@@ -43,6 +43,7 @@ static gpointer watch_main(gpointer data)
     if (usb_new(&u, &w->err) != SL_OK || usb_hotplug_start(u, on_event, w) != SL_OK) {
         if (u)
             sl_seterr(&w->err, SL_EIO, "USB hot-plug: %s", usb_errmsg(u));
+        g_message("no USB hot-plug: %s", w->err.msg);
         usb_free(u);
         set_started(w, -1);
         return NULL;
@@ -57,23 +58,16 @@ static gpointer watch_main(gpointer data)
 
 int camwatch_new(camwatch **out, camwatch_fn fn, void *userdata, sl_err *err)
 {
-    *out = NULL;
+    (void)err;
     camwatch *w = g_new0(camwatch, 1);
     w->fn = fn;
     w->ud = userdata;
     g_mutex_init(&w->mu);
     g_cond_init(&w->cv);
+    /* Not waited for: libusb's start-up (udev enumeration) is not the
+     * daemon's start-up's business; the thread says itself when USB
+     * hot-plug cannot run. */
     w->th = g_thread_new("camwatch", watch_main, w);
-    g_mutex_lock(&w->mu);
-    while (!w->started)
-        g_cond_wait(&w->cv, &w->mu);
-    int ok = w->started > 0;
-    g_mutex_unlock(&w->mu);
-    if (!ok) {
-        int rc = sl_seterr(err, w->err.code ? w->err.code : SL_EIO, "%s", w->err.msg);
-        camwatch_free(w);
-        return rc;
-    }
     *out = w;
     return SL_OK;
 }

@@ -18,9 +18,10 @@ typedef struct camwatch camwatch;
 /* arrived: 1 arrived, 0 left; dev is valid during the call only. */
 typedef void (*camwatch_fn)(int arrived, const usb_dev_info *dev, void *userdata);
 
-/* Starts the thread; cameras present now are reported as arrivals.  An
- * error (no USB support here) is not fatal to the daemon: the caller
- * logs it and goes on without hot-plug. */
+/* Starts the thread and returns at once; cameras present when it is up
+ * are reported as arrivals.  An error there (no USB support here) is not
+ * fatal to the daemon: the thread logs it and ends, and the daemon goes
+ * on without hot-plug.  SL_OK always (err unused: kept for the shape). */
 int camwatch_new(camwatch **out, camwatch_fn fn, void *userdata, sl_err *err);
 /* Stops and joins the thread; camwatch_free(NULL) is a no-op. */
 void camwatch_free(camwatch *w);

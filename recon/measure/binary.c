@@ -297,7 +297,7 @@ static double choose(binary_plan *p, const cand *c, int nc, int nraw,
         double th[NPAR] = {x1, y1, remainder(c[k].x - x1, w),
                            remainder(c[k].y - y1, h), log(r0)};
         double cost = binary_fit_lm(&p->f, th, CAND_ITERS);
-        if (hypot(th[2], th[3]) <= rc + 1)
+        if (hypot(remainder(th[2], w), remainder(th[3], h)) <= rc + 1)
             continue; /* merged into the core: not a companion */
         if (k < nraw && !isfinite(fcost)) {
             fcost = cost;
@@ -516,7 +516,9 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
     binary_fit_cov(f, th, C);
     double r = exp(th[4]), sr = r * sqrt(C[4 * NPAR + 4]);
     out->pa_ambiguous = !(1.0 - r > fmax(2.0 * sr, 1e-6));
-    double d[2] = {th[2], th[3]};
+    /* The model is periodic (frequencies j / w): d and d + (w, 0) are one
+     * fit, and only the principal offset is a separation. */
+    double d[2] = {remainder(th[2], w), remainder(th[3], h)};
     double cd[3] = {C[2 * NPAR + 2], C[2 * NPAR + 3], C[3 * NPAR + 3]};
     double mx = th[0] + 0.5 * d[0], my = th[1] + 0.5 * d[1];
     out->d_from_peaks = choose_d(p, &q, th, cost, out->pa_ambiguous, d, cd);
@@ -539,9 +541,13 @@ int binary_plan_measure(binary_plan *p, const float *img, binary_result *out)
     out->dm_err_mag = 2.5 / M_LN10 * sqrt(C[4 * NPAR + 4] * kr);
     out->err_inflation = kd;
     out->background = q.bg;
+    out->core_radius_px = q.rc;
     out->noise = sqrt(q.noise2 / ((double)w * h));
     out->nfreq = f->m;
     out->fit_rms = q.noise2 > 0 ? sqrt(cost / f->m / (0.5 * q.noise2)) : NAN;
+    if (out->sep_px <= q.rc + 1)   /* the fit walked into the core */
+        return sl_seterr(&p->err, SL_EDATA, "binary_measure: the companion "
+                         "converged into the core (%.1f px, core %d px)", out->sep_px, q.rc);
     if (r < 1e-4 || r < 3.0 * sr)   /* sr: the uninflated error */
         return sl_seterr(&p->err, SL_EDATA, "binary_measure: no significant "
                          "companion (flux ratio %.3g +- %.2g)", r, sr);

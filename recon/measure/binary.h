@@ -128,6 +128,8 @@ typedef struct binary_result {
                                 frequencies (see Uncertainties; 1: white) */
     int pa_ambiguous;        /* r within 2 sigma of 1: PA +- 180 deg */
     int d_from_peaks;        /* d from the interpolated peaks, not the fit */
+    int core_radius_px;      /* the primary's core: a companion within
+                                core + 1 px cannot be told from it here */
 } binary_result;
 
 typedef struct binary_plan binary_plan;

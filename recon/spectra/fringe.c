@@ -13,6 +13,8 @@ typedef struct samples {
     int n, nbin;
     double *kx, *ky, *q, *wt;
     int *bin;
+    int *lo;            /* ring means at a sample: sum_j wq[3 i + j] X[lo + j] */
+    double *wq;
     double *ring_n;     /* samples per ring */
     double *tmp;        /* n scratch */
     double *acc;        /* 3 nbin scratch */
@@ -25,6 +27,8 @@ static void samples_free(samples *s)
     free(s->q);
     free(s->wt);
     free(s->bin);
+    free(s->lo);
+    free(s->wq);
     free(s->ring_n);
     free(s->tmp);
     free(s->acc);
@@ -39,10 +43,12 @@ static int samples_alloc(samples *s, int n, int nbin)
     s->q = malloc(sizeof(double) * (size_t)n);
     s->wt = malloc(sizeof(double) * (size_t)n);
     s->bin = malloc(sizeof(int) * (size_t)n);
+    s->lo = malloc(sizeof(int) * (size_t)n);
+    s->wq = malloc(3 * sizeof(double) * (size_t)n);
     s->tmp = malloc(sizeof(double) * (size_t)n);
     s->ring_n = calloc((size_t)nbin, sizeof(double));
     s->acc = calloc(3 * (size_t)nbin, sizeof(double));
-    if (!s->kx || !s->ky || !s->q || !s->wt || !s->bin || !s->tmp ||
+    if (!s->kx || !s->ky || !s->q || !s->wt || !s->bin || !s->lo || !s->wq || !s->tmp ||
         !s->ring_n || !s->acc) {
         samples_free(s);
         return SL_ENOMEM;
@@ -68,6 +74,67 @@ static void samples_add(samples *s, double kx, double ky, double p, int bin)
     s->n++;
 }
 
+/* A ring's mean X at sample i's own radius: the quadratic through the
+ * means of rings lo[i] .. lo[i] + 2 (Lagrange weights wq), or fewer where
+ * neighbours are missing.  Power means (logv) are interpolated in their
+ * logarithm when all are positive: a seeing-like transfer function is
+ * near Gaussian, whose log is quadratic in radius. */
+static double ring_at(const samples *s, const double *X, int i, int logv)
+{
+    const double *w = s->wq + 3 * (size_t)i;
+    const double *x = X + s->lo[i];
+    int n = w[2] != 0 ? 3 : w[1] != 0 ? 2 : 1;
+    int lg = logv;
+    for (int j = 0; j < n && lg; j++)
+        lg = x[j] > 0;
+    double v = 0;
+    for (int j = 0; j < n; j++)
+        v += w[j] * (lg ? log(x[j]) : x[j]);
+    return lg ? exp(v) : v;
+}
+
+/* Each sample's interpolation between its ring's mean radius and its
+ * neighbours'.  Why: a ring is one grid step wide, and on a small crop
+ * (30 px: 0.033 cycles/px) the transfer function falls across it by tens
+ * of per cent; the plain ring mean leaves a radial slope in Q that the
+ * fit reads as misfit (reduced chi^2 3.6-4.1 on a resolved pair's 30 px
+ * crop, 0.95 on its 128 px frame).  Rings without samples are not
+ * bridged. */
+static void samples_interp(samples *s)
+{
+    double *rbar = s->acc;
+    memset(rbar, 0, sizeof(double) * (size_t)s->nbin);
+    memset(s->ring_n, 0, sizeof(double) * (size_t)s->nbin);
+    for (int i = 0; i < s->n; i++)
+        rbar[s->bin[i]] += hypot(s->kx[i], s->ky[i]), s->ring_n[s->bin[i]]++;
+    for (int b = 0; b < s->nbin; b++)
+        rbar[b] = s->ring_n[b] > 0 ? rbar[b] / s->ring_n[b] : 0;
+    for (int i = 0; i < s->n; i++) {
+        int b = s->bin[i], lo = b, n = 1;
+        double r = hypot(s->kx[i], s->ky[i]), *w = s->wq + 3 * (size_t)i;
+        int has_lo = b > 0 && s->ring_n[b - 1] > 0;
+        int has_hi = b + 1 < s->nbin && s->ring_n[b + 1] > 0;
+        if (has_lo && has_hi)
+            lo = b - 1, n = 3;
+        else if (has_lo)
+            lo = b - 1, n = 2;
+        else if (has_hi)
+            n = 2;
+        w[0] = 1, w[1] = w[2] = 0;
+        if (fabs(r - rbar[b]) > 1e-12 && n > 1)
+            for (int j = 0; j < n; j++) {
+                double l = 1;
+                for (int k = 0; k < n; k++)
+                    if (k != j)
+                        l *= (r - rbar[lo + k]) / (rbar[lo + j] - rbar[lo + k]);
+                w[j] = l;
+            }
+        else if (n > 1)  /* exactly at the ring's mean radius */
+            lo = b;
+        s->lo[i] = lo;
+    }
+}
+
 /* The fraction of the well-measured rings' samples (mean above 5 sigma
  * of one sample's noise) below a tenth of their ring's mean: a mask's
  * gaps make it 0.5 or more; a binary's fringe minima (c = 1) 0.14. */
@@ -76,7 +143,7 @@ static double dark_fraction(const samples *s, const double *mean,
 {
     double dark = 0, all = 0, sigma = (noise + 1e-300) / sqrt(nframes);
     for (int i = 0; i < s->n; i++) {
-        double m = mean[s->bin[i]];
+        double m = ring_at(s, mean, i, 1);
         if (m > 5 * sigma) {
             all++;
             dark += s->q[i] < 0.1 * m;
@@ -90,6 +157,7 @@ static double dark_fraction(const samples *s, const double *mean,
 static void samples_normalise(samples *s, double noise, double nframes,
                               double *dark)
 {
+    samples_interp(s);
     double *mean = s->acc;
     memset(mean, 0, sizeof(double) * (size_t)s->nbin);
     memset(s->ring_n, 0, sizeof(double) * (size_t)s->nbin);
@@ -100,9 +168,10 @@ static void samples_normalise(samples *s, double noise, double nframes,
     *dark = dark_fraction(s, mean, noise, nframes);
     int k = 0;
     for (int i = 0; i < s->n; i++) {
-        double m = mean[s->bin[i]], p = s->q[i];
-        if (!(m > 0))
+        double m = ring_at(s, mean, i, 1), p = s->q[i];
+        if (!(mean[s->bin[i]] > 0))
             continue;
+        m = m > 0 ? m : mean[s->bin[i]];
         /* white noise is flat before the pixel MTF is divided out */
         double den = fmax(p, 0) + noise / pixel_mtf(s->kx[i], s->ky[i]);
         den = fmax(den, 1e-3 * m);
@@ -112,9 +181,7 @@ static void samples_normalise(samples *s, double noise, double nframes,
         k++;
     }
     s->n = k;
-    memset(s->ring_n, 0, sizeof(double) * (size_t)s->nbin);
-    for (int i = 0; i < s->n; i++)
-        s->ring_n[s->bin[i]]++;
+    samples_interp(s);   /* over the rings kept; sets ring_n */
 }
 
 /* chi^2 at d with c solved linearly (Q (1 + c J) = 1 + c cos, residual
@@ -130,7 +197,7 @@ static double chi2_linear(samples *s, const double *cosv, double *c_out)
         J[b] = s->ring_n[b] > 0 ? J[b] / s->ring_n[b] : 0;
     double sya = 0, saa = 0, syy = 0;
     for (int i = 0; i < s->n; i++) {
-        double y = s->q[i] - 1, a = cosv[i] - s->q[i] * J[s->bin[i]];
+        double y = s->q[i] - 1, a = cosv[i] - s->q[i] * ring_at(s, J, i, 0);
         sya += s->wt[i] * y * a, saa += s->wt[i] * a * a, syy += s->wt[i] * y * y;
     }
     double c = saa > 0 ? sya / saa : 0;
@@ -199,8 +266,8 @@ static double model_chi2(samples *s, const double t[3], double A[3][3],
     if (A)
         memset(A, 0, sizeof(double) * 9), memset(g, 0, sizeof(double) * 3);
     for (int i = 0; i < s->n; i++) {
-        int b = s->bin[i];
-        double cs = s->tmp[i], den = 1 + c * J[b], num = 1 + c * cs;
+        double Ji = ring_at(s, J, i, 0), Jxi = ring_at(s, Jx, i, 0), Jyi = ring_at(s, Jy, i, 0);
+        double cs = s->tmp[i], den = 1 + c * Ji, num = 1 + c * cs;
         double res = s->q[i] - num / den;
         chi += s->wt[i] * res * res;
         if (!A)
@@ -208,9 +275,9 @@ static double model_chi2(samples *s, const double t[3], double A[3][3],
         double ph = 2 * M_PI * (s->kx[i] * t[0] + s->ky[i] * t[1]), sn = sin(ph);
         double dcx = -2 * M_PI * s->kx[i] * sn, dcy = -2 * M_PI * s->ky[i] * sn;
         double d2 = den * den, jac[3];
-        jac[0] = (c * dcx * den - num * c * Jx[b]) / d2;
-        jac[1] = (c * dcy * den - num * c * Jy[b]) / d2;
-        jac[2] = (cs - J[b]) / d2;
+        jac[0] = (c * dcx * den - num * c * Jxi) / d2;
+        jac[1] = (c * dcy * den - num * c * Jyi) / d2;
+        jac[2] = (cs - Ji) / d2;
         for (int a = 0; a < 3; a++) {
             g[a] += s->wt[i] * jac[a] * res;
             for (int e = 0; e < 3; e++)

@@ -134,8 +134,8 @@ TEST(amateur_close_pair_8_bit)
     blind_cube c;
     sl_err e;
     CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
-    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER};
-    for (int i = 0; i < 2 && !t->failed; i++) {
+    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER, PIPE_TSM, PIPE_AUTO};
+    for (int i = 0; i < 4 && !t->failed; i++) {
         pipeline_binary b;
         double cc;
         CHECK(measure(c.path, methods[i], &b, &cc, &c.truth, &e) == SL_OK, "%s", e.msg);
@@ -277,8 +277,8 @@ TEST(a_point_source_is_unresolved)
     blind_cube c;
     sl_err e;
     CHECK(blind_write(&c, &s, &e) == SL_OK, "%s", e.msg);
-    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER};
-    for (int i = 0; i < 2 && !t->failed; i++) {
+    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER, PIPE_TSM, PIPE_AUTO};
+    for (int i = 0; i < 4 && !t->failed; i++) {
         pipeline_binary b;
         double cc;
         CHECK(measure(c.path, methods[i], &b, &cc, &c.truth, &e) == SL_OK, "%s", e.msg);

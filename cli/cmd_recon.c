@@ -91,6 +91,8 @@ static void parameters_json(JsonBuilder *b, const pipeline_opts *o,
     cli_json_num(b, "RDN", p->read_noise_adu);
     cli_json_str(b, "RDSRC", p->read_noise_source == PIPE_RDN_HEADER ? "header"
                              : p->read_noise_source == PIPE_RDN_SKY ? "sky rms" : "none");
+    cli_json_num(b, "GAINE", p->gain_e_per_adu);
+    cli_json_str(b, "GNSRC", pipeline_gain_source_name(p->gain_source));
     cli_json_str(b, "reference", o->ref_path ? o->ref_path : "none");
     json_builder_end_object(b);
 }

@@ -40,6 +40,7 @@ typedef struct seq_ps {
     double *ps;       /* w*h: the bias-free mean power spectrum */
     double *le;       /* w*h or NULL: powspec_aligned_power */
     double g, bias;   /* gain used (or found), white-noise level */
+    double g_floor;   /* blind: the gain the floor implies (0: it cannot say) */
     int nframes;
 } seq_ps;
 
@@ -67,6 +68,9 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
          * this pass the floor estimate stands for the photon bias. */
         g = powspec_mean_flux(p) / photons;
     }
+    out->g_floor = 0;
+    if (rc == SL_OK && !(g > 0) && !(photons > 0) && s->det_learnt)
+        powspec_floor_gain(p, s->det.sky_rms, &out->g_floor);
     if (rc == SL_OK && (rc = powspec_result(p, out->ps)) != SL_OK)
         sl_seterr(err, rc, "%s", powspec_errmsg(p));
     if (rc == SL_OK && out->le && powspec_aligned_power(p, out->le) != SL_OK)
@@ -245,6 +249,10 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     if ((rc = direct_powspec(s, o, photons, &sp, support, &rcut, err)) != SL_OK)
         goto free_all;
     g = sp.g;
+    if (g > 0 && rep->gain_source == PIPE_GAIN_NONE)
+        rep->gain_e_per_adu = s->scale / g, rep->gain_source = PIPE_GAIN_FLUX;
+    else if (sp.g_floor > 0)
+        rep->gain_e_per_adu = s->scale / sp.g_floor, rep->gain_source = PIPE_GAIN_FLOOR;
     double snr = support_snr(sp.ps, support, n, sp.bias);
     bispec_opts bo;
     direct_opts(s, o, g, photons, snr, support, &bo);
@@ -478,6 +486,10 @@ int pipeline_run(const char *const *paths, int npaths,
     rep->photons = photons;
     rep->photon_source = phsrc;
     rep->read_noise_adu = stream_read_noise(&s, photons, &rep->read_noise_source) / s.scale;
+    if (g > 0) {
+        rep->gain_e_per_adu = s.scale / g;
+        rep->gain_source = o->adu_per_photon > 0 ? PIPE_GAIN_OPTION : PIPE_GAIN_HEADER;
+    }
     rep->scale = s.scale;
     rc = eo.method == PIPE_DIRECT
              ? run_direct(&s, refp, &eo, photons, g, out->image, rep, &out->binary, err)

@@ -204,6 +204,16 @@ enum pipeline_photon_source {
  * frames are not photon counts, or nothing says), the header (SIMRDN,
  * RDNOISE), or the sky's temporal rms in the raw frames. */
 enum pipeline_rdn_source { PIPE_RDN_NONE = 0, PIPE_RDN_HEADER, PIPE_RDN_SKY };
+/* Where the detector's gain came from: the caller (--adu-per-photon), the
+ * header (GAIN, SIMGAIN), the flux over a known photon count, or the
+ * data alone: the power spectrum's white floor against the flux, less
+ * the sky's white noise (powspec_floor_gain; direct only, Nyquist or
+ * finer sampling). */
+enum pipeline_gain_source {
+    PIPE_GAIN_NONE = 0, PIPE_GAIN_OPTION, PIPE_GAIN_HEADER, PIPE_GAIN_FLUX,
+    PIPE_GAIN_FLOOR
+};
+const char *pipeline_gain_source_name(int source);
 
 typedef struct pipeline_prep_report {   /* the cleaning (prep.h) */
     int on;                   /* frames were cleaned at all */
@@ -247,6 +257,8 @@ typedef struct pipeline_report {
     int photon_source;        /* enum pipeline_photon_source */
     double read_noise_adu;    /* per pixel, for the photon bias; 0 none */
     int read_noise_source;    /* enum pipeline_rdn_source */
+    double gain_e_per_adu;    /* detector gain (raw ADU); 0 unknown */
+    int gain_source;          /* enum pipeline_gain_source */
     double scale;             /* frames x this (power of 2) for the sums */
     /* direct */
     int window;               /* POWSPEC_WIN_* */

@@ -43,6 +43,13 @@ const char *pipeline_photon_source_name(int s)
     return s >= 0 && s <= PIPE_PHOT_GAIN ? phsrc_names[s] : "unknown";
 }
 
+static const char *gain_names[] = {"none", "option", "header", "flux", "floor"};
+
+const char *pipeline_gain_source_name(int s)
+{
+    return s >= 0 && s <= PIPE_GAIN_FLOOR ? gain_names[s] : "unknown";
+}
+
 static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
 {
     const pipeline_report *p = &r->report;
@@ -56,6 +63,11 @@ static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
         num(k, "RECRDN", p->read_noise_adu, "[adu] read noise for the photon bias");
         str(k, "RECRDSRC", rdn_names[p->read_noise_source % 3],
             "RECRDN from: SIMRDN/RDNOISE, or the sky's temporal rms");
+    }
+    if (p->gain_source != PIPE_GAIN_NONE) {
+        num(k, "RECGAINE", p->gain_e_per_adu, "[e-/adu] detector gain");
+        str(k, "RECGNSRC", pipeline_gain_source_name(p->gain_source),
+            "RECGAINE from: option, header, flux/photons, PS floor");
     }
     str(k, "RECREF", o->ref_path ? o->ref_path : "none", "reference (point-source) sequence");
     if (p->scale != 1.0)

@@ -67,6 +67,15 @@ int powspec_result(powspec *p, double *ps);
 double powspec_bias(const powspec *p);
 /* Mean of sum(frame) over the frames (no window). */
 double powspec_mean_flux(const powspec *p);
+/* The detector's gain (ADU per photon) from the data alone, for frames
+ * whose noise is photon noise plus white noise of white_adu rms per
+ * pixel (read noise, sky, quantisation: the sky's temporal rms): the
+ * measured floor (BIAS_FLOOR) is g sum(w^2 frame) + white^2 sum w^2, the
+ * photon-transfer relation read in the Fourier domain.  SL_EDATA (and 0)
+ * when the floor cannot say: another bias mode, speckle reaching the
+ * floor's region (sampling coarser than Nyquist), no flux, or white
+ * noise owning over 80 % of the floor. */
+int powspec_floor_gain(const powspec *p, double white_adu, double *adu_per_photon);
 /* Mean of the frames' FFTs (windowed), w*h, FFT order. */
 int powspec_mean_ft(const powspec *p, double complex *ft);
 

@@ -311,6 +311,52 @@ TEST(read_noise_bias_removed)
           "without read noise the floor sits at %g, want %g (se %g)", mean0, want, se);
 }
 
+/* The gain from the data alone (powspec_floor_gain): Poisson frames at
+ * 2.5 ADU per photon with 1 ADU of white noise read from the floor
+ * within 3 %; refused (not a wrong number) when the white noise owns the
+ * floor (6 ADU: 90 %) and in another bias mode. */
+TEST(gain_from_the_floor)
+{
+    int n = 64, nfr = 40;
+    double gain = 2.5, flux = 2000 * gain;
+    gen g;
+    gen_init(&g, n);
+    rng r;
+    rng_init(&r, 23, 0);
+    double x[2] = {30.2, 36.0}, y[2] = {31.7, 29.0}, f[2] = {1, 0.6};
+    float *fr = malloc(n * n * sizeof *fr);
+    powspec_opts o;
+    powspec_opts_default(&o);
+    o.bias = POWSPEC_BIAS_FLOOR;
+    o.window = POWSPEC_WIN_TUKEY;
+    o.measure = 0;
+    powspec *p[2] = {powspec_new(n, n, &o, NULL), powspec_new(n, n, &o, NULL)};
+    o.bias = POWSPEC_BIAS_PHOTON;
+    powspec *ph = powspec_new(n, n, &o, NULL);
+    const double rn[2] = {1.0, 6.0};
+    for (int k = 0; k < nfr; k++) {
+        gen_frame(&g, &r, 2.5, 2, x, y, f, flux, gain, 1, fr);
+        powspec_add(ph, fr);
+        for (int i = 0; i < n * n; i++)
+            fr[i] += (float)(rn[k & 1] * rng_normal(&r));
+        powspec_add(p[k & 1], fr);
+    }
+    double est[3] = {0, 0, 0};
+    int rc[3] = {powspec_floor_gain(p[0], rn[0], &est[0]),
+                 powspec_floor_gain(p[1], rn[1], &est[1]),
+                 powspec_floor_gain(ph, 0, &est[2])};
+    powspec_free(p[0]);
+    powspec_free(p[1]);
+    powspec_free(ph);
+    gen_done(&g);
+    free(fr);
+    CHECK(rc[0] == SL_OK && fabs(est[0] / gain - 1) < 0.03,
+          "gain %.4f (rc %d), truth %.4f", est[0], rc[0], gain);
+    CHECK(rc[1] == SL_EDATA && est[1] == 0, "white noise owning the floor: rc %d gain %g",
+          rc[1], est[1]);
+    CHECK(rc[2] == SL_EDATA, "photon-bias mode: rc %d gain %g", rc[2], est[2]);
+}
+
 /* With a point-source reference the speckle transfer function divides
  * out: the binary's normalised modulus |cos| pattern is recovered far
  * better than by sqrt(PS) alone. */
@@ -366,6 +412,6 @@ TEST(reference_division)
           e1);
 }
 
-TC_MAIN(TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant),
+TC_MAIN(TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant), TC_CASE(gain_from_the_floor),
         TC_CASE(window_shapes), TC_CASE(photon_bias_removed),
         TC_CASE(read_noise_bias_removed), TC_CASE(reference_division))

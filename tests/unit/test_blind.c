@@ -337,9 +337,9 @@ TEST(a258_methods_agree_or_say_so)
     const char *pat = "../shared/data/a258/a258_f*.fit";
     if (access("../shared/data/a258/a258_f0001.fit", R_OK) != 0)
         SKIP("../shared/data/a258 is absent (a user's clone)");
-    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER, PIPE_TSM};
-    pipeline_binary b[3];
-    for (int i = 0; i < 3; i++) {
+    const int methods[] = {PIPE_DIRECT, PIPE_TSM_FOURIER, PIPE_TSM, PIPE_AUTO};
+    pipeline_binary b[4];
+    for (int i = 0; i < 4; i++) {
         pipeline_opts o;
         pipeline_opts_defaults(&o);
         o.method = methods[i];
@@ -352,8 +352,8 @@ TEST(a258_methods_agree_or_say_so)
         pipeline_result_clear(&r);
         CHECK(b[i].status != PIPE_BIN_NONE, "no verdict");
     }
-    for (int i = 0; i < 3; i++)
-        for (int j = i + 1; j < 3; j++) {
+    for (int i = 0; i < 4; i++)
+        for (int j = i + 1; j < 4; j++) {
             if (b[i].status != PIPE_BIN_MEASURED || b[j].status != PIPE_BIN_MEASURED)
                 continue;
             CHECK(fabs(b[i].sep_px - b[j].sep_px) < 0.2 && pa_err(b[i].pa_deg, b[j].pa_deg) < 5,

@@ -50,7 +50,7 @@ static int measure(framefeed *ff, const oiexport_mask *mk, const oiexport_opts *
                    oiexport_result *r, sl_err *err)
 {
     maskobs_opts mo;
-    maskobs_opts_default(&mo);
+    maskobs_opts_defaults(&mo);
     mo.wavelength_m = r->wavelength_m;
     mo.plate_scale_arcsec = r->plate_scale_arcsec;
     mo.adu_per_photon = r->photons.adu_per_photon;

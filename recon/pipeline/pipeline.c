@@ -48,7 +48,7 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
                             double photons, seq_ps *out, sl_err *err)
 {
     powspec_opts po;
-    powspec_opts_default(&po);
+    powspec_opts_defaults(&po);
     po.aligned = out->le != NULL;
     po.window = o->window;
     po.tukey_alpha = o->tukey_alpha;
@@ -133,7 +133,7 @@ static void direct_opts(const stream *s, const pipeline_opts *o, double g,
                         double photons, double snr, unsigned char *support,
                         bispec_opts *bo)
 {
-    bispec_opts_default(bo);
+    bispec_opts_defaults(bo);
     int side = s->w < s->h ? s->w : s->h;
     bo->r2_px = o->r2_px > 0 ? o->r2_px : (int)lround(0.14 * side);
     bo->r2_px = bo->r2_px > BISPEC_R2_MAX ? BISPEC_R2_MAX : bo->r2_px < 1 ? 1 : bo->r2_px;
@@ -355,7 +355,7 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
                    pipeline_binary *bin, sl_err *err)
 {
     tsm_opts to;
-    tsm_opts_default(&to);
+    tsm_opts_defaults(&to);
     to.nangles = o->nangles > 0 ? o->nangles : 180;
     to.variant = o->method == PIPE_TSM ? TSM_SPATIAL : TSM_FOURIER;
     to.cutoff_cyc_px = o->cutoff_cyc_px;

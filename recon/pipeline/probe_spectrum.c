@@ -133,7 +133,7 @@ int probe_measure_spectrum(probe *p)
     int cw = sc->crop_w, ch = sc->crop_h;
     size_t n = (size_t)cw * ch;
     powspec_opts po;
-    powspec_opts_default(&po);
+    powspec_opts_defaults(&po);
     po.window = p->o.window;
     po.tukey_alpha = 0.25;
     po.bias = POWSPEC_BIAS_FLOOR;

@@ -21,7 +21,7 @@
 #include <string.h>
 
 
-void bispec_opts_default(bispec_opts *o)
+void bispec_opts_defaults(bispec_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->r2_px = 8;
@@ -321,7 +321,7 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
 {
     bispec_opts def;
     if (!o) {
-        bispec_opts_default(&def);
+        bispec_opts_defaults(&def);
         o = &def;
     }
     if (check_opts(o, w, h, err) != SL_OK)

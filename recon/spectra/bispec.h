@@ -93,7 +93,7 @@ typedef struct bispec_opts {
                                      of the cut-off radius (0 = hard edge) */
 } bispec_opts;
 
-void bispec_opts_default(bispec_opts *o); /* R2 8, MOD weighting, 1 thread,
+void bispec_opts_defaults(bispec_opts *o); /* R2 8, MOD weighting, 1 thread,
                                              no window/photons, taper 0.2 */
 
 typedef struct bispec bispec;

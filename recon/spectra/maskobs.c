@@ -6,7 +6,7 @@
 
 #include "maskobs_int.h"
 
-void maskobs_opts_default(maskobs_opts *o)
+void maskobs_opts_defaults(maskobs_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->wavelength_m = 500e-9;

@@ -94,7 +94,7 @@ typedef struct maskobs_opts {
     int measure;               /* 1: FFTW_MEASURE, 0: FFTW_ESTIMATE */
 } maskobs_opts;
 
-void maskobs_opts_default(maskobs_opts *o); /* 500 nm, NAN plate scale,
+void maskobs_opts_defaults(maskobs_opts *o); /* 500 nm, NAN plate scale,
                                                no photons, MEASURE */
 
 /* One baseline's squared visibility.  sta: hole indices, i < j. */

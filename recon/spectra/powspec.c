@@ -34,7 +34,7 @@ struct powspec {
     sl_err err;
 };
 
-void powspec_opts_default(powspec_opts *o)
+void powspec_opts_defaults(powspec_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->window = POWSPEC_WIN_NONE;
@@ -86,7 +86,7 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
 {
     powspec_opts def;
     if (!o) {
-        powspec_opts_default(&def);
+        powspec_opts_defaults(&def);
         o = &def;
     }
     if (w < 4 || h < 4) {

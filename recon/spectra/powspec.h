@@ -46,7 +46,7 @@ typedef struct powspec_opts {
     int aligned;           /* 1: also the aligned mean spectrum (default 0) */
 } powspec_opts;
 
-void powspec_opts_default(powspec_opts *o);
+void powspec_opts_defaults(powspec_opts *o);
 
 typedef struct powspec powspec;
 

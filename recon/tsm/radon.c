@@ -12,7 +12,7 @@
 #include <string.h>
 
 
-void radon_opts_default(radon_opts *o)
+void radon_opts_defaults(radon_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->window = RADON_WIN_RAMLAK;
@@ -349,7 +349,7 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
     if (opts)
         o = *opts;
     else
-        radon_opts_default(&o);
+        radon_opts_defaults(&o);
     int ns = 0, nf = 0, kw = 0, ng0 = 0;
     double sigma = 0;
     if (radon_plan_sizes(w, h, nangles, &o, &ns, &nf, &sigma, &kw, &ng0, err) != SL_OK)

@@ -98,7 +98,7 @@ typedef struct radon_opts {
 
 /* Defaults: everything 0 except bp_interp = CUBIC, bp_upsample = 2,
  * spatial = 1, window = RAMLAK. */
-void radon_opts_default(radon_opts *o);
+void radon_opts_defaults(radon_opts *o);
 
 typedef struct radon radon;
 

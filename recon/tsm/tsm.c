@@ -22,7 +22,7 @@
 #include "tsm_int.h"
 
 
-void tsm_opts_default(tsm_opts *o) { memset(o, 0, sizeof *o); }
+void tsm_opts_defaults(tsm_opts *o) { memset(o, 0, sizeof *o); }
 
 const char *tsm_errmsg(const tsm *t) { return t ? t->err.msg : ""; }
 int tsm_nangles(const tsm *t) { return t->nang; }
@@ -161,7 +161,7 @@ static int tsm_parts(tsm *t, sl_err *err)
 {
     const tsm_opts *o = &t->o;
     radon_opts ro;
-    radon_opts_default(&ro);
+    radon_opts_defaults(&ro);
     ro.nproj = t->ns;
     ro.nfreq = t->nf;
     ro.oversamp = o->oversamp;
@@ -214,7 +214,7 @@ tsm *tsm_new(int w, int h, const tsm_opts *opts, sl_err *err)
     if (opts)
         o = *opts;
     else
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
     int nang, ns, J;
     if (tsm_check(w, h, &o, &nang, &ns, &J, err) != SL_OK)
         return NULL;

@@ -215,7 +215,7 @@ typedef struct tsm_opts {
     unsigned fftw_flags;       /* 0: FFTW_MEASURE */
 } tsm_opts;
 
-void tsm_opts_default(tsm_opts *o);   /* all zero = the defaults above */
+void tsm_opts_defaults(tsm_opts *o);   /* all zero = the defaults above */
 
 typedef struct tsm tsm;
 

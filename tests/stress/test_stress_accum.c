@@ -90,7 +90,7 @@ static double complex dval(const dfft *d, int p, int q)
 TEST(powspec_1e5_frames_against_double)
 {
     powspec_opts o;
-    powspec_opts_default(&o);
+    powspec_opts_defaults(&o);
     o.window = POWSPEC_WIN_NONE;
     o.bias = POWSPEC_BIAS_NONE;
     o.measure = 0;
@@ -134,7 +134,7 @@ TEST(powspec_1e5_frames_against_double)
 TEST(bispec_1e5_frames_against_double)
 {
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 4;
     o.rcut_px = 8;
     o.measure = 0;
@@ -188,7 +188,7 @@ TEST(bispec_1e5_frames_against_double)
 static void tsm_case(tc *t, tsm_variant v, int nangles, int nframes)
 {
     tsm_opts o;
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.nangles = nangles;
     o.variant = v;
     o.fftw_flags = FFTW_ESTIMATE;

@@ -140,7 +140,7 @@ TEST(triples_match_bruteforce)
     int n = 32, R2 = 5;
     double rc = 11.5;
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = R2;
     o.rcut_px = rc;
     o.measure = 0;
@@ -205,7 +205,7 @@ TEST(accumulator_equals_definition)
     double worst[3] = {0, 0, 0};
     for (int v = 0; v < 3; v++) {
         bispec_opts o;
-        bispec_opts_default(&o);
+        bispec_opts_defaults(&o);
         o.r2_px = 4;
         o.measure = 0;
         o.acc_float = v == 1;
@@ -251,7 +251,7 @@ TEST(photon_bias_flat_field)
     rng_init(&r, 5, 0);
     float *fr = malloc((size_t)n * n * sizeof *fr);
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 4;
     o.rcut_px = 10;
     o.measure = 0;
@@ -347,7 +347,7 @@ TEST(noiseless_phase_exact)
     int used = 0;
     for (int v = 0; v < 2; v++) {
         bispec_opts o;
-        bispec_opts_default(&o);
+        bispec_opts_defaults(&o);
         o.r2_px = 6;
         o.rcut_px = n / 2 - 1;
         o.measure = 0;
@@ -404,7 +404,7 @@ TEST(shift_invariant)
     float *ia = malloc((size_t)n * n * sizeof *ia);
     float *ib = malloc((size_t)n * n * sizeof *ib);
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 5;
     o.measure = 0;
     bispec *a = bispec_new(n, n, &o, NULL), *b = bispec_new(n, n, &o, NULL);
@@ -457,7 +457,7 @@ static void speckle_binary_case(tc *t, double sep, double pa)
     double *po = malloc(N * sizeof *po), *pr = malloc(N * sizeof *pr);
     double *mod = malloc(N * sizeof *mod), *otf = malloc(N * sizeof *otf);
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 8;
     o.rcut_px = n / 2 - 1;
     o.measure = 0;
@@ -549,7 +549,7 @@ TEST(photon_phases)
     bispec *b[2];
     for (int v = 0; v < 2; v++) {
         bispec_opts o;
-        bispec_opts_default(&o);
+        bispec_opts_defaults(&o);
         o.r2_px = 8;
         o.rcut_px = n / 2 - 1;
         o.measure = 0;
@@ -602,7 +602,7 @@ TEST(photon_unbiased)
     size_t N = (size_t)n * n;
     float *fr = malloc(N * sizeof *fr), *fp = malloc(N * sizeof *fp);
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 5;
     o.rcut_px = n / 2 - 1;
     o.measure = 0;
@@ -650,7 +650,7 @@ TEST(memory_formula)
     int w = 64, h = 48, R2 = 6;
     for (int v = 0; v < 16; v++) {
         bispec_opts o;
-        bispec_opts_default(&o);
+        bispec_opts_defaults(&o);
         o.r2_px = R2;
         o.rcut_px = 20;
         o.measure = 0;
@@ -685,7 +685,7 @@ TEST(triple_count_estimate)
     double rc = 60;
     for (int i = 0; i < 3; i++) {
         bispec_opts o;
-        bispec_opts_default(&o);
+        bispec_opts_defaults(&o);
         o.r2_px = r2s[i];
         o.rcut_px = rc;
         o.measure = 0;

@@ -34,7 +34,7 @@ static int highfreq_mean(int window, double rn, double rn_fix, double *mre, doub
     for (int i = 0; i < n * n; i++)
         lam[i] *= (float)(flux / s);
     bispec_opts o;
-    bispec_opts_default(&o);
+    bispec_opts_defaults(&o);
     o.r2_px = 6;
     o.adu_per_photon = 1;
     o.read_noise_adu = rn_fix;

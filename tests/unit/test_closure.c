@@ -60,13 +60,13 @@ static int simulate_into(const bench_case *c, bispec **b, tsm **tp,
             rc = cube_writer_open(&w, path, c->n, c->n, -32, &md, &e);
         } else if (tp) {
             tsm_opts to;
-            tsm_opts_default(&to);
+            tsm_opts_defaults(&to);
             to.fftw_flags = FFTW_ESTIMATE;
             if (!(*tp = tsm_new(c->n, c->n, &to, &e)))
                 rc = e.code;
         } else {
             bispec_opts bo;
-            bispec_opts_default(&bo);
+            bispec_opts_defaults(&bo);
             bo.r2_px = (int)lround(0.14 * c->n);
             bo.measure = 0;
             if (!(*b = bispec_new(c->n, c->n, &bo, &e)))

@@ -48,7 +48,7 @@ static int observe(const run *r, maskobs_result *out, double *ps, sl_err *e)
         for (int i = 0; i < nh; i++)
             mask_hole(m, i, &x[i], &y[i]);
         maskobs_opts mop;
-        maskobs_opts_default(&mop);
+        maskobs_opts_defaults(&mop);
         mop.wavelength_m = o.wavelength_m;
         mop.plate_scale_arcsec = *ps = sim_plate_scale_arcsec(s);
         mop.adu_per_photon = r->photons > 0 ? 1.0 / o.gain_e_per_adu : 0;
@@ -179,7 +179,7 @@ TEST(redundant_baselines_not_measured)
      * the three triangles using one of them are lost; (0, 2, 3) is not */
     double x[] = {-0.3, 0.0, 0.3, 0.05}, y[] = {0.0, 0.0, 0.0, 0.45};
     maskobs_opts o;
-    maskobs_opts_default(&o);
+    maskobs_opts_defaults(&o);
     o.plate_scale_arcsec = 500e-9 / (2 * 0.85) * RAD_ARCSEC;
     o.measure = 0;
     sl_err e = {0};
@@ -207,7 +207,7 @@ TEST(bad_arguments_refused)
 {
     double x[] = {0, 0.3, 0.1}, y[] = {0, 0, 0.4};
     maskobs_opts o;
-    maskobs_opts_default(&o);
+    maskobs_opts_defaults(&o);
     sl_err e = {0};
     CHECK(!maskobs_new(x, y, 3, 0.1, 64, 64, &o, &e) && e.code == SL_EINVAL &&
           strstr(e.msg, "plate scale"), "NAN plate scale: %s", e.msg);

@@ -87,13 +87,13 @@ TEST(partial_sums_merge_to_the_whole)
           *ib = malloc(npx * sizeof *ib);
     CHECK(fr && ia && ib && simulate(fr, NULL, 1) == SL_OK, "simulation");
     powspec_opts po;
-    powspec_opts_default(&po);
+    powspec_opts_defaults(&po);
     po.measure = 0;
     bispec_opts bo;
-    bispec_opts_default(&bo);
+    bispec_opts_defaults(&bo);
     bo.measure = 0;
     tsm_opts to;
-    tsm_opts_default(&to);
+    tsm_opts_defaults(&to);
     to.nangles = 36;
     to.fftw_flags = FFTW_ESTIMATE;
     powspec *pa = powspec_new(SIDE, SIDE, &po, NULL), *pb = powspec_new(SIDE, SIDE, &po, NULL);

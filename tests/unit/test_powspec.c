@@ -79,7 +79,7 @@ TEST(single_frame_equals_fft)
     double *ps = malloc(n * n * sizeof *ps);
     gen_frame(&g, &r, 2.0, 2, x, y, f, 1000.0, 1, 0, fr);
     powspec_opts o;
-    powspec_opts_default(&o);
+    powspec_opts_defaults(&o);
     o.measure = 0;
     powspec *p = powspec_new(n, n, &o, NULL);
     int rc = powspec_add(p, fr);
@@ -186,7 +186,7 @@ TEST(photon_bias_removed)
     double *ps = malloc(n * n * sizeof *ps), *pf = malloc(n * n * sizeof *pf);
     unsigned char *mask = malloc(n * n);
     powspec_opts o;
-    powspec_opts_default(&o);
+    powspec_opts_defaults(&o);
     o.bias = POWSPEC_BIAS_PHOTON;
     o.adu_per_photon = gain;
     o.measure = 0;
@@ -261,7 +261,7 @@ TEST(read_noise_bias_removed)
     float *fr = malloc(n * n * sizeof *fr), *win = malloc(n * n * sizeof *win);
     double *ps = malloc(n * n * sizeof *ps), *p0 = malloc(n * n * sizeof *p0);
     powspec_opts o;
-    powspec_opts_default(&o);
+    powspec_opts_defaults(&o);
     o.bias = POWSPEC_BIAS_PHOTON;
     o.adu_per_photon = gain;
     o.window = POWSPEC_WIN_TUKEY;
@@ -326,7 +326,7 @@ TEST(gain_from_the_floor)
     double x[2] = {30.2, 36.0}, y[2] = {31.7, 29.0}, f[2] = {1, 0.6};
     float *fr = malloc(n * n * sizeof *fr);
     powspec_opts o;
-    powspec_opts_default(&o);
+    powspec_opts_defaults(&o);
     o.bias = POWSPEC_BIAS_FLOOR;
     o.window = POWSPEC_WIN_TUKEY;
     o.measure = 0;

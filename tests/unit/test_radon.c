@@ -45,7 +45,7 @@ enum { NPH = sizeof phantom / sizeof phantom[0] };
 static radon *make(int w, int h, int nang, int nproj)
 {
     radon_opts o;
-    radon_opts_default(&o);
+    radon_opts_defaults(&o);
     o.nproj = nproj;
     o.fftw_flags = FFTW_ESTIMATE;
     return radon_new(w, h, nang, &o, NULL);
@@ -304,7 +304,7 @@ TEST(fbp_windows)
     gaussians(img, n, n, phantom, 1);
     for (int win = RADON_WIN_RAMLAK; win <= RADON_WIN_HANN; win++) {
         radon_opts o;
-        radon_opts_default(&o);
+        radon_opts_defaults(&o);
         o.window = (radon_window)win;
         o.bp_interp = win & 1 ? RADON_INTERP_LINEAR : RADON_INTERP_CUBIC;
         o.fftw_flags = FFTW_ESTIMATE;
@@ -383,7 +383,7 @@ TEST(bad_arguments)
     sl_err e = {0};
     CHECK(radon_new(0, 10, 10, NULL, &e) == NULL && e.code == SL_EINVAL, "w = 0 accepted");
     radon_opts o;
-    radon_opts_default(&o);
+    radon_opts_defaults(&o);
     o.nfreq = 1000;
     CHECK(radon_new(32, 32, 4, &o, &e) == NULL && e.code == SL_EINVAL, "nfreq > nproj/2+1");
     radon_free(NULL);

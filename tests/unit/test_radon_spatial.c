@@ -60,7 +60,7 @@ static void ref_project(const float *img, int w, int h, int nang, int ns, float 
 static radon *make(const geom *g, int threads)
 {
     radon_opts o;
-    radon_opts_default(&o);
+    radon_opts_defaults(&o);
     o.nproj = g->nproj;
     o.threads = threads;
     o.fftw_flags = FFTW_ESTIMATE;
@@ -130,7 +130,7 @@ TEST(projector_same_bits_any_threads_or_path)
         for (int k = 0; k < g->nang; k++)
             cs[k] = cos(k * M_PI / g->nang), sn[k] = sin(k * M_PI / g->nang);
         radon_opts o;
-        radon_opts_default(&o);
+        radon_opts_defaults(&o);
         o.fftw_flags = FFTW_ESTIMATE;
         radon_spatial *sp = radon_spatial_new(g->w, g->h, g->nang, ns, &o, cs, sn, xlo, xhi,
                                               NULL);
@@ -156,7 +156,7 @@ TEST(projector_same_bits_any_threads_or_path)
 TEST(project_needs_spatial)
 {
     radon_opts o;
-    radon_opts_default(&o);
+    radon_opts_defaults(&o);
     o.spatial = 0;
     o.fftw_flags = FFTW_ESTIMATE;
     radon *r = radon_new(16, 16, 4, &o, NULL);

@@ -107,7 +107,7 @@ TEST(aligned_long_exposure)
 {
     enum { N = 32, F = 16 };
     powspec_opts po;
-    powspec_opts_default(&po);
+    powspec_opts_defaults(&po);
     po.aligned = 1;
     po.measure = 0;
     powspec *p = powspec_new(N, N, &po, NULL);

@@ -246,7 +246,7 @@ static double pa_diff(double a, double b)
 static tsm *make_tsm(int n, int nang, tsm_variant v, double nph)
 {
     tsm_opts o;
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.nangles = nang;
     o.variant = v;
     o.photons_per_frame = nph;
@@ -390,7 +390,7 @@ TEST(noiseless_reproduces_projections)
         CHECK(tsm_result(ts, img) == SL_OK, "tsm_result: %s", tsm_errmsg(ts));
         int ns = tsm_nproj(ts), nf = tsm_nfreq(ts);
         radon_opts ro;
-        radon_opts_default(&ro);
+        radon_opts_defaults(&ro);
         ro.nproj = ns, ro.nfreq = nf, ro.fftw_flags = FFTW_ESTIMATE;
         radon *r = radon_new(n, n, nang, &ro, NULL);
         float *pt = malloc(sizeof(float) * nang * ns), *pr = malloc(sizeof(float) * nang * ns);
@@ -525,7 +525,7 @@ TEST(bench_binary_strong_seeing)
         {TSM_SPATIAL, 90, 1, TSM_BIAS_AUTO}};
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         tsm_opts o;
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
         o.nangles = cases[c].nang;
         o.variant = cases[c].v;
         o.bias = cases[c].bias;
@@ -559,7 +559,7 @@ static double shift_residual(tsm *ts, const float *truth, int n)
 {
     int nang = tsm_nangles(ts), ns = tsm_nproj(ts), nf = tsm_nfreq(ts);
     radon_opts ro;
-    radon_opts_default(&ro);
+    radon_opts_defaults(&ro);
     ro.nproj = ns, ro.nfreq = nf, ro.spatial = 0, ro.fftw_flags = FFTW_ESTIMATE;
     radon *r = radon_new(n, n, nang, &ro, NULL);
     float *pr = malloc(sizeof(float) * nang * ns);
@@ -613,7 +613,7 @@ TEST(reprojection_alignment)
     double res[2], c[2];
     for (int on = 0; on < 2; on++) {
         tsm_opts o;
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
         o.nangles = nang;
         o.reproj_iters = on ? 0 : -1;
         o.fftw_flags = FFTW_ESTIMATE;
@@ -684,7 +684,7 @@ TEST(few_angles_iterative)
     double c[2];
     for (int it = 0; it < 2; it++) {
         tsm_opts o;
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
         o.nangles = nang;
         o.inverse = it ? TSM_INV_ITER : TSM_INV_AUTO;
         o.fftw_flags = FFTW_ESTIMATE;
@@ -762,7 +762,7 @@ TEST(photon_bias)
     /* raw, photon + read, photon, floor; bispectrum: raw, photon */
     for (int k = 0; k < 6; k++) {
         tsm_opts o;
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
         o.nangles = nang;
         o.fftw_flags = FFTW_ESTIMATE;
         o.bias = k == 0 || k == 4 ? TSM_BIAS_NONE : k == 3 ? TSM_BIAS_AUTO : TSM_BIAS_PHOTON;
@@ -831,7 +831,7 @@ TEST(noise_transfer)
     float *fr = malloc(sizeof(float) * n * n);
     for (int v = TSM_FOURIER; v <= TSM_SPATIAL; v++) {
         tsm_opts o;
-        tsm_opts_default(&o);
+        tsm_opts_defaults(&o);
         o.nangles = nang;
         o.variant = (tsm_variant)v;
         o.bias = TSM_BIAS_FLOOR;
@@ -898,13 +898,13 @@ TEST(bad_input)
 {
     sl_err e = {0};
     tsm_opts o;
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.nangles = -3;
     CHECK(tsm_new(32, 32, &o, &e) == NULL && e.code == SL_EINVAL, "negative nangles accepted");
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.bias = TSM_BIAS_PHOTON;   /* photon bias needs the photon count */
     CHECK(tsm_new(32, 32, &o, &e) == NULL && e.code == SL_EINVAL, "photon bias without photons");
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.read_noise_adu = -1;
     CHECK(tsm_new(32, 32, &o, &e) == NULL && e.code == SL_EINVAL, "negative read noise accepted");
     tsm_free(NULL);

@@ -88,7 +88,7 @@ static float *sim_binary(int n, int nfr, double sep_px, double dm)
 static double tsm_dm(const float *fr, int n, int nfr, double arc, double *arc_used)
 {
     tsm_opts o;
-    tsm_opts_default(&o);
+    tsm_opts_defaults(&o);
     o.nangles = 180;
     o.arc_bins = arc;
     o.fftw_flags = FFTW_ESTIMATE;

@@ -28,8 +28,9 @@ WARN   += -Werror
 endif
 OPT    ?= -O2 -g
 SAN    ?=
+# -Icommon: every module includes the shared error base as "status.h".
 CFLAGS_ALL := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L $(OPT) \
-              $(WARN) $(SAN) -MMD -MP
+              $(WARN) $(SAN) -MMD -MP -Icommon
 LDFLAGS_ALL := $(SAN)
 
 recon_cflags = $(shell $(PKG) --cflags $(RECON_PKGS) 2>/dev/null)
@@ -52,6 +53,13 @@ daemon_cflags = $(shell $(PKG) --cflags $(DAEMON_PKGS) 2>/dev/null)
 daemon_libs   = $(shell $(PKG) --libs $(DAEMON_PKGS) 2>/dev/null)
 fig_cflags    = $(shell $(PKG) --cflags $(FIG_PKGS) 2>/dev/null)
 fig_libs      = $(shell $(PKG) --libs $(FIG_PKGS) 2>/dev/null)
+
+# common/: the error base every module shares (status.h: the code ranges,
+# sl_strstatus).  It includes nothing of the project; every program and
+# test links libcommon.a, after the archives that use it.
+COMMON_SRC := $(wildcard common/*.c)
+COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
+COMMON_LIB := $(BUILD)/libcommon.a
 
 # recon/ in rooms (README, Layout): base, io, sim, spectra, tsm, pipeline,
 # measure -> librecon.a; bench (the benchmark and its charts) -> its own
@@ -144,6 +152,14 @@ PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd) $(MPI_
 .PHONY: all deps test quick stress soak soak-web asan asan-ci-build valgrind bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
 
+$(BUILD)/common/%.o: common/%.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -c $< -o $@
+
+$(COMMON_LIB): $(COMMON_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
 $(BUILD)/recon/%.o: recon/%.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon $(recon_cflags) -c $< -o $@
@@ -161,7 +177,7 @@ $(FIG_LIB): $(FIG_OBJ)
 
 $(BUILD)/drivers/%.o: drivers/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon $(drv_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) $(drv_cflags) -c $< -o $@
 
 $(DRV_LIB): $(DRV_OBJ)
 	@mkdir -p $(dir $@)
@@ -175,9 +191,9 @@ $(BUILD)/mocks/%.o: mocks/%.c
 $(CAMSRC_LIB): $(CAMSRC_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(CAMSRC_LIB) $(RECON_LIB)
+$(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(CAMSRC_LIB) $(RECON_LIB) $(recon_libs) $(drv_libs) $(mock_libs_$*)
+	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(drv_libs) $(mock_libs_$*)
 
 $(BUILD)/schema/catalog_res.c: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)
 	@mkdir -p $(dir $@)
@@ -189,32 +205,32 @@ $(BUILD)/schema/catalog_res.o: $(BUILD)/schema/catalog_res.c
 
 $(BUILD)/schema/%.o: schema/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema $(schema_cflags) -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Ischema $(schema_cflags) -c $< -o $@
 
 $(SCHEMA_LIB): $(SCHEMA_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
-$(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(schema_libs) -lm
+	$(CC) $(CFLAGS_ALL) -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(COMMON_LIB) $(schema_libs) -lm
 
-$(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
+	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
 # test_mpi* run mpirun on bin/specklab-mpi when the build has MPI.
 $(BUILD)/tests/test_mpi $(BUILD)/tests/test_mpi_reprocess: $(MPI_BIN)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
 	    $(if $(MPI_BIN),-DSL_HAVE_MPI=1) \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
-	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(recon_libs) \
+	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) $(fig_libs) -lm
 
 # The soak program (make soak only): the integration fixture plus the
@@ -222,11 +238,11 @@ $(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV
 SOAK_SRC := $(wildcard tests/soak/*.c)
 SOAK_BIN := $(BUILD)/soak/soak
 $(SOAK_BIN): $(SOAK_SRC) $(wildcard tests/soak/*.h) tests/integration/daemon_fx.h \
-             tests/integration/daemon_client.h $(SCHEMA_LIB) $(RECON_LIB)
+             tests/integration/daemon_client.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $(SOAK_SRC) -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
@@ -240,18 +256,18 @@ $(CLI_LIB): $(filter-out $(CLI_MAIN),$(CLI_OBJ))
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+$(BIN)/specklab: $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
+	$(CC) $(LDFLAGS_ALL) -o $@ $(CLI_MAIN) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) \
 	    $(recon_libs) $(cli_libs) $(schema_libs) $(fig_libs)
 
 $(BUILD)/mpi/%.o: mpi/%.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Icli -Ischema $(recon_cflags) $(cli_cflags) $(schema_cflags) $(mpi_cflags) -c $< -o $@
 
-$(BIN)/specklab-mpi: $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB)
+$(BIN)/specklab-mpi: $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) \
+	$(CC) $(LDFLAGS_ALL) -o $@ $(MPI_OBJ) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) \
 	    $(recon_libs) $(cli_libs) $(schema_libs) $(fig_libs) $(mpi_libs)
 
 $(BUILD)/daemon/%.o: daemon/%.c
@@ -266,25 +282,25 @@ $(BUILD)/daemon/web_res.c: $(WEB_RES) daemon/webpage.html
 $(BUILD)/daemon/web_res.o: $(BUILD)/daemon/web_res.c
 	$(CC) $(CFLAGS_ALL) -Wno-missing-prototypes $(daemon_cflags) -c $< -o $@
 
-$(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
+$(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) \
+	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) \
 	    $(recon_libs) $(FFTW_THREADS_LIBS) $(daemon_libs) $(fig_libs) -lm
 
-$(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(recon_libs)
+	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
-$(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(recon_libs) $(fig_libs)
+	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
 
-$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB)
+$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(DRV_LIB) $(RECON_LIB) $(recon_libs) $(tdrv_libs)
+	    $(LDFLAGS_ALL) $(DRV_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
 
 # Install what pkg-config lacks (root) or say the exact apt-get line.
 deps:
@@ -320,11 +336,11 @@ stress: all
 # make soak): three 1000-frame runs, the middle one watched by ten viewers.
 SOAK_WEB_BIN := $(BUILD)/soak/web-viewers
 $(SOAK_WEB_BIN): tests/soak/web/viewers.c tests/integration/daemon_fx.h \
-                 tests/integration/daemon_client.h tests/integration/web_fx.h $(SCHEMA_LIB) $(RECON_LIB)
+                 tests/integration/daemon_client.h tests/integration/web_fx.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 # Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/),
 # then the web page's ten viewers (~1 min).
@@ -382,17 +398,17 @@ FUZZ_SECS  ?= 60
 # 15-minute bound on 2 cores; `make fuzz` is the deep run.
 FUZZ_CI_SECS ?= 12
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g \
-               -fno-omit-frame-pointer $(WARN) \
+               -fno-omit-frame-pointer $(WARN) -Icommon \
                -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 FUZZ_BIN   := $(patsubst tests/fuzz/%.c,$(FUZZ_BUILD)/%,$(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_FITS_SRC  := recon/io/cube.c recon/io/cube_guard.c recon/io/cube_write.c \
                   recon/io/cube_meta.c recon/io/cube_header.c recon/io/datasum.c \
-                  recon/base/seq.c recon/base/status.c
-FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c recon/base/status.c
-FUZZ_SCENE_SRC := recon/sim/scene.c recon/base/status.c
+                  recon/base/seq.c common/status.c
+FUZZ_MASK_SRC  := recon/sim/mask.c recon/sim/mask_gen.c recon/base/rng.c common/status.c
+FUZZ_SCENE_SRC := recon/sim/scene.c common/status.c
 FUZZ_STAGE_SRC := drivers/stage.c drivers/stage_modbus.c drivers/stage_backend.c drivers/stage_probe.c \
-                  recon/base/status.c
-FUZZ_CONFIG_SRC := daemon/config.c daemon/config_defaults.c daemon/webconf.c recon/base/status.c recon/pipeline/pipeline_names.c
+                  common/status.c
+FUZZ_CONFIG_SRC := daemon/config.c daemon/config_defaults.c daemon/webconf.c common/status.c recon/pipeline/pipeline_names.c
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
@@ -413,7 +429,7 @@ $(FUZZ_BUILD)/fuzz_scene: tests/fuzz/fuzz_scene.c $(FUZZ_SCENE_SRC) recon/sim/sc
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -Irecon $< $(FUZZ_SCENE_SRC) -o $@ -lm
 $(FUZZ_BUILD)/fuzz_stage: tests/fuzz/fuzz_stage.c $(FUZZ_STAGE_SRC) drivers/stage.h drivers/stage_modbus.h drivers/stage_backend.h
 	@mkdir -p $(dir $@)
-	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Irecon -Idrivers $(shell $(PKG) --cflags libmodbus) $< \
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -pthread -Idrivers $(shell $(PKG) --cflags libmodbus) $< \
 	    $(FUZZ_STAGE_SRC) -o $@ $(shell $(PKG) --libs libmodbus) -lm
 
 $(FUZZ_BUILD)/fuzz_config: tests/fuzz/fuzz_config.c $(FUZZ_CONFIG_SRC) daemon/config.h daemon/webconf.h tests/fuzz/fuzz_util.h
@@ -473,5 +489,5 @@ include mk/install.mk
 clean:
 	rm -rf build build-asan build-fuzz bin
 
--include $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+-include $(COMMON_OBJ:.o=.d) $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
          $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d) $(MPI_OBJ:.o=.d)

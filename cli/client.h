@@ -8,9 +8,10 @@
  * go to a FIFO read by client_next_event, replies to other pipelined
  * requests to a table read by their own client_wait_reply.
  *
- * Errors follow recon/base/status.h: SL_OK or a negative code, the message in
+ * Errors follow common/status.h: SL_OK or a negative code, the message in
  * the handle (client_errmsg) or, for client_connect, in the caller's
- * sl_err.  Besides the SL_E* codes there are three client codes:
+ * sl_err.  Besides the SL_E* codes there are three client codes, declared
+ * in the client's range of status.h (sl_strstatus names them):
  *   CLIENT_EUNREACHABLE  no daemon listening at the path (ENOENT,
  *                        ECONNREFUSED, EACCES...): the message says how
  *                        to start it or what to check;
@@ -34,13 +35,7 @@
 
 #include <json-glib/json-glib.h>
 
-#include "base/status.h"
-
-enum {
-    CLIENT_EUNREACHABLE = -30,
-    CLIENT_ETIMEOUT = -31,
-    CLIENT_EREMOTE = -32
-};
+#include "status.h"
 
 /* The system daemon's socket: the unit's RuntimeDirectory and the
  * installed configuration (make install) say the same. */

@@ -10,7 +10,7 @@
 #ifndef SL_DAEMON_CAMWATCH_H
 #define SL_DAEMON_CAMWATCH_H
 
-#include "base/status.h"
+#include "status.h"
 #include "usb.h"
 
 typedef struct camwatch camwatch;

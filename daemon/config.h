@@ -26,7 +26,7 @@
 #ifndef SL_DAEMON_CONFIG_H
 #define SL_DAEMON_CONFIG_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define CONFIG_MAX_SLOTS 16
 

@@ -19,7 +19,7 @@
 #include <stdint.h>
 
 #include "camera.h"
-#include "base/status.h"
+#include "status.h"
 
 /* One buffer the camera delivered, good or damaged. */
 typedef struct cubefile_row {

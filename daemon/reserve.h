@@ -23,7 +23,7 @@
 #ifndef SL_DAEMON_RESERVE_H
 #define SL_DAEMON_RESERVE_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define RESERVE_BYTES (1 << 20)
 

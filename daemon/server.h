@@ -36,7 +36,7 @@
 
 #include <glib.h>
 
-#include "base/status.h"
+#include "status.h"
 
 #define SERVER_MAX_LINE 65536
 #define SERVER_MAX_OUTPUT (16u << 20)

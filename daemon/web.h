@@ -43,7 +43,7 @@
 
 #include <gio/gio.h>
 
-#include "base/status.h"
+#include "status.h"
 #include "config.h"
 #include "runner.h"
 #include "webview.h"

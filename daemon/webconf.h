@@ -19,7 +19,7 @@
 #ifndef SL_DAEMON_WEBCONF_H
 #define SL_DAEMON_WEBCONF_H
 
-#include "base/status.h"
+#include "status.h"
 #include "config.h"
 
 /* Parse "HOST:PORT" (also "[V6]:PORT") into a numeric host (owned, no

@@ -469,13 +469,3 @@ const char *camera_trigger_name(camera_trigger t)
     default: return "unknown";
     }
 }
-
-const char *camera_strstatus(int code)
-{
-    switch (code) {
-    case CAMERA_ETIMEOUT: return "timeout";
-    case CAMERA_ELOST: return "camera control lost";
-    case CAMERA_ENODEV: return "no such camera";
-    default: return sl_strstatus(code);
-    }
-}

@@ -10,9 +10,10 @@
  * no-op.  Every fallible call returns SL_OK or a negative code, the message
  * kept in the handle (camera_errmsg) or, for camera_list / camera_open, in
  * the caller's sl_err.  Messages start with "camera ADDRESS:" and say what
- * to check ("camera 127.0.0.1: no reply ...").  Besides the SL_E* codes of
- * status.h there are three driver codes: CAMERA_ETIMEOUT (nothing within
- * the deadline: retry), CAMERA_ELOST (control lost: camera_reconnect) and
+ * to check ("camera 127.0.0.1: no reply ...").  Besides the SL_E* codes
+ * there are three driver codes, declared in the camera's range of
+ * status.h (sl_strstatus names them): CAMERA_ETIMEOUT (nothing within the
+ * deadline: retry), CAMERA_ELOST (control lost: camera_reconnect) and
  * CAMERA_ENODEV (no such camera, or it does not answer).
  *
  * Acquisition: camera_start makes a stream with a pool of N buffers;
@@ -41,13 +42,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "base/status.h"
-
-enum {
-    CAMERA_ETIMEOUT = -20, /* no frame / no reply within the deadline */
-    CAMERA_ELOST = -21,    /* control of the camera lost: reconnect */
-    CAMERA_ENODEV = -22    /* no such camera, or it does not answer */
-};
+#include "status.h"
 
 #define CAMERA_STR_MAX 128
 
@@ -268,7 +263,5 @@ camera_pixfmt camera_pixfmt_parse(const char *name); /* UNKNOWN if not */
 int camera_pixfmt_bytes(camera_pixfmt f);            /* 1 or 2, 0 unknown */
 const char *camera_frame_status_name(camera_frame_status s);
 const char *camera_trigger_name(camera_trigger t);
-/* Like sl_strstatus, knowing the CAMERA_E* codes too. */
-const char *camera_strstatus(int code);
 
 #endif

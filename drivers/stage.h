@@ -49,7 +49,7 @@
 #define SL_STAGE_H
 
 #include "stage_map.h"
-#include "base/status.h"
+#include "status.h"
 
 typedef struct stage stage;
 

@@ -15,7 +15,7 @@
 
 #include <cairo.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct canvas canvas;
 

@@ -19,7 +19,7 @@
 #ifndef SL_CHART_H
 #define SL_CHART_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define CHART_MAX_PANELS 12
 #define CHART_MAX_SERIES 64

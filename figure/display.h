@@ -30,7 +30,7 @@
 #ifndef SL_DISPLAY_H
 #define SL_DISPLAY_H
 
-#include "base/status.h"
+#include "status.h"
 #include "io/preview.h"
 
 #define DISPLAY_MIN_MAXIMA 16

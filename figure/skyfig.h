@@ -28,7 +28,7 @@
 #ifndef SL_SKYFIG_H
 #define SL_SKYFIG_H
 
-#include "base/status.h"
+#include "status.h"
 #include "display.h"
 #include "io/preview.h"
 #include "pipeline/pipeline.h"

@@ -5,7 +5,7 @@
 #include <mpi.h>
 #include <stdlib.h>
 
-#include "base/status.h"
+#include "status.h"
 
 /* MPI counts are int: buffers go in pieces of at most 2^27 doubles (1 GiB). */
 #define PIECE ((size_t)1 << 27)

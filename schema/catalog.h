@@ -22,7 +22,7 @@
  *       --sourcedir=schema --target=$(BUILD)/schema/catalog_res.c \
  *       schema/catalog.gresource.xml
  *   (dependencies for make: the same with --generate-dependencies)
- * and link schema/catalog*.c, that catalog_res.c and recon/base/status.c with
+ * and link schema/catalog*.c, that catalog_res.c and common/status.c with
  *   $(pkg-config --cflags --libs sqlite3 gio-2.0 glib-2.0) -lm.
  *
  * SQL.  Every statement is a string literal (schema/catalog_sql.c; the
@@ -57,7 +57,7 @@
 
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct catalog catalog;
 

@@ -23,7 +23,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 #define U3V_CMD_MAX 1024 /* SBRM max command / ack transfer, bytes */
 

@@ -21,7 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 #include "u3v_regs.h"
 
 typedef struct u3v_usb u3v_usb;

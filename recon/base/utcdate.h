@@ -7,7 +7,7 @@
 #ifndef SL_UTCDATE_H
 #define SL_UTCDATE_H
 
-#include "base/status.h"
+#include "status.h"
 
 /* Modified Julian Date (days since 1858-11-17T00:00 UTC) of iso.
  * SL_EINVAL naming the text when it is not such a date, or a field is out

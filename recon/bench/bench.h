@@ -38,7 +38,7 @@
 #include <stdint.h>
 
 #include "pipeline/pipeline.h"
-#include "base/status.h"
+#include "status.h"
 
 /* ---- simulated data sets ---------------------------------------------- */
 

@@ -58,7 +58,7 @@
 #define SL_CUBE_H
 
 #include "base/seq.h"
-#include "base/status.h"
+#include "status.h"
 
 /* ---- metadata ---------------------------------------------------------- */
 

@@ -4,7 +4,7 @@
 #ifndef SL_CUBE_GUARD_H
 #define SL_CUBE_GUARD_H
 
-#include "base/status.h"
+#include "status.h"
 
 /* SL_OK, or SL_EFORMAT naming path and the reason when a header holds a
  * tile-compressed image (ZIMAGE = T).  A file that cannot be opened or

@@ -29,7 +29,7 @@
 #ifndef SL_OIFITS_H
 #define SL_OIFITS_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define OIFITS_NAME_MAX 69   /* one FITS string card: 68 characters + NUL */
 

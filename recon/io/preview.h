@@ -16,7 +16,7 @@
 #ifndef SL_PREVIEW_H
 #define SL_PREVIEW_H
 
-#include "base/status.h"
+#include "status.h"
 
 typedef enum preview_stretch {
     PREVIEW_LINEAR,

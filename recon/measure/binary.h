@@ -104,7 +104,7 @@
 #ifndef SL_BINARY_H
 #define SL_BINARY_H
 
-#include "base/status.h"
+#include "status.h"
 
 /* A binary star measured on an image.  The companion is the fainter
  * component; dx_px, dy_px are its offset from the brighter one, sep_px =

@@ -1,7 +1,7 @@
 /* binary_fit.c - see binary_fit.h (and binary.h for the model). */
 #include "binary_fit.h"
 
-#include "base/status.h"
+#include "status.h"
 
 #include <math.h>
 #include <stdlib.h>

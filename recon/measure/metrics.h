@@ -14,7 +14,7 @@
 #define SL_METRICS_H
 
 #include "binary.h"
-#include "base/status.h"
+#include "status.h"
 
 /* The paper's correlation coefficient c (Surya & Saha, eq. 14): Pearson's r
  * over all w*h pixels, computed in double.  Returns 0 when either image is

@@ -67,7 +67,7 @@
 #ifndef SL_SEEING_H
 #define SL_SEEING_H
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct seeing seeing;
 

@@ -19,7 +19,7 @@
 
 #include "io/cube.h"
 #include "pipeline.h"
-#include "base/status.h"
+#include "status.h"
 
 typedef struct framefeed framefeed;
 

@@ -46,7 +46,7 @@
 #include "spectra/closure.h"
 #include "io/cube.h"
 #include "spectra/fringe.h"
-#include "base/status.h"
+#include "status.h"
 
 enum pipeline_method {
     PIPE_DIRECT = 0, PIPE_TSM = 1, PIPE_TSM_FOURIER = 2, PIPE_AUTO = 3

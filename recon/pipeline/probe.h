@@ -44,7 +44,7 @@
 #include "io/cube.h"
 #include "pipeline.h"
 #include "prep.h"
-#include "base/status.h"
+#include "status.h"
 
 /* Cumulative power profile: bins of width 0.5 / PROBE_NBIN cycles/px. */
 #define PROBE_NBIN 64

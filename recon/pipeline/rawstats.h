@@ -37,7 +37,7 @@
 
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct rawstats rawstats;
 

@@ -22,7 +22,7 @@
 
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 /* Largest converter: float32 output holds every integer up to 2^24. */
 #define DETECTOR_MAX_ADC_BITS 24

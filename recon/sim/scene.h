@@ -15,7 +15,7 @@
 #ifndef SL_SCENE_H
 #define SL_SCENE_H
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct scene scene;
 

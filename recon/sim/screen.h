@@ -65,7 +65,7 @@
 
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct screen screen;
 

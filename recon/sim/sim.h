@@ -53,7 +53,7 @@
 #include "detector.h"
 #include "mask.h"
 #include "scene.h"
-#include "base/status.h"
+#include "status.h"
 
 typedef struct sim sim;
 

@@ -59,7 +59,7 @@
 #include "closure.h"
 #include "phasor.h"
 #include "powspec.h"
-#include "base/status.h"
+#include "status.h"
 
 #define BISPEC_BATCH 8
 #define BISPEC_R2_MAX 144 /* u2 offsets must fit a uint16 */

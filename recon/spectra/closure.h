@@ -54,7 +54,7 @@
 
 #include "measure/binary.h"
 #include "phasor.h"
-#include "base/status.h"
+#include "status.h"
 
 #define CLOSURE_REL_MIN 1e-4 /* triples kept: |B| >= this x max |B| */
 

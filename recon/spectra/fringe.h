@@ -42,7 +42,7 @@
 #ifndef SL_FRINGE_H
 #define SL_FRINGE_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define FRINGE_DETECT 50.0
 #define FRINGE_MAX_CHI2 4.0

@@ -78,7 +78,7 @@
 #ifndef SL_MASKOBS_H
 #define SL_MASKOBS_H
 
-#include "base/status.h"
+#include "status.h"
 
 #define MASKOBS_CLEAN_MAX 0.01      /* other splodges / own transfer */
 #define MASKOBS_MIN_TRANSFER 0.15   /* of the splodge's peak (1/nholes) */

@@ -23,7 +23,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 enum {
     PHASOR_WEIGHT_MOD = 0,  /* |<B>|: strong triples dominate (default) */

@@ -16,7 +16,7 @@
 
 #include <complex.h>
 
-#include "base/status.h"
+#include "status.h"
 
 enum { POWSPEC_WIN_NONE = 0, POWSPEC_WIN_HANN = 1, POWSPEC_WIN_TUKEY = 2 };
 enum {

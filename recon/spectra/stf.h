@@ -32,7 +32,7 @@
 
 #include <stdint.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef struct stf_model stf_model;
 

@@ -63,7 +63,7 @@
 
 #include <complex.h>
 
-#include "base/status.h"
+#include "status.h"
 
 typedef enum radon_window {
     RADON_WIN_RAMLAK = 0,  /* plain ramp, cut at the window cut-off */

@@ -147,7 +147,7 @@
 
 #include "spectra/closure.h"
 #include "radon.h"
-#include "base/status.h"
+#include "status.h"
 #include "base/tpool.h"
 
 typedef enum tsm_variant { TSM_FOURIER = 0, TSM_SPATIAL = 1 } tsm_variant;

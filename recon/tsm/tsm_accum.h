@@ -35,7 +35,7 @@
 #include <stddef.h>
 
 #include "radon.h"
-#include "base/status.h"
+#include "status.h"
 #include "base/tpool.h"
 
 typedef struct tsm_accum tsm_accum;

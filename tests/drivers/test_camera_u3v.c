@@ -183,7 +183,7 @@ static void body_unplug(tc *t)
     CHECK(rc == 0, "before the unplug: %s", s.err);
     CHECK(unplugged, "the camera did not answer 'unplug'");
     CHECK(lost_rc == CAMERA_ELOST, "after the unplug camera_pop gave %d (%s), not CAMERA_ELOST",
-          lost_rc, camera_strstatus(lost_rc));
+          lost_rc, sl_strstatus(lost_rc));
     printf("note: control lost %.2f s after the unplug\n", lost_s);
     CHECK(plugged, "the camera did not answer 'plug'");
     CHECK(rrc == SL_OK, "after the re-plug: %s", rerr[0] ? rerr : s.err);

@@ -14,7 +14,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "base/status.h"
+#include "status.h"
 
 /* A memfd holding the bytes, path "/proc/self/fd/N"; -1 on failure. */
 static inline int mem_file(const uint8_t *data, size_t size, char *path, size_t n)

@@ -35,6 +35,14 @@ const char *sl_strstatus(int code)
     case SL_EDATA: return "bad data";
     case SL_ERANGE: return "out of range";
     case SL_EEND: return "end of sequence";
+    /* Names stay distinct across modules (the camera's and the client's
+     * timeouts are different waits), so the name alone says who failed. */
+    case CAMERA_ETIMEOUT: return "camera timeout";
+    case CAMERA_ELOST: return "camera control lost";
+    case CAMERA_ENODEV: return "no such camera";
+    case CLIENT_EUNREACHABLE: return "daemon unreachable";
+    case CLIENT_ETIMEOUT: return "daemon reply timeout";
+    case CLIENT_EREMOTE: return "daemon refused the request";
     default: return "unknown error";
     }
 }

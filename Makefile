@@ -112,6 +112,11 @@ CLI_MAIN  := $(BUILD)/cli/main.o
 # mock links (only the members it uses are pulled in).
 MOCK_DIRS := $(filter-out camsrc,$(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c)))))
 MOCK_BIN  := $(MOCK_DIRS:%=$(BIN)/specklab-%)
+# Only the link rule's secondary expansion names a mock's objects, so make
+# takes them for intermediates and deletes them after a fresh build; the
+# next make would compile them again.  Keep them.
+MOCK_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard $(MOCK_DIRS:%=mocks/%/*.c)))
+.SECONDARY: $(MOCK_OBJ)
 CAMSRC_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard mocks/camsrc/*.c))
 CAMSRC_LIB := $(BUILD)/libcamsrc.a
 

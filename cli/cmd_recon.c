@@ -22,7 +22,7 @@ typedef struct recon_args {
     char *method, *out, *png, *png_raw, *cut, *ref, *target, *window, *stretch, *skips, *tsm_phases, *tsm_inverse, *badpix, *phase_weights;
     char *dark, *flat, *flat_dark;
     int projections, r2, no_prep, no_detect, no_recentre, no_stf, learn_badpix, json, quiet, threads, refine, binary, overwrite;
-    double photons, gain_adu_per_photon, saturation, wiener, target_error;
+    double photons, gain_adu_per_photon, saturation, wiener, target_error, bispec_mb;
 } recon_args;
 
 /* The scene probe's numbers and the choice (pipeline.h's report). */
@@ -73,6 +73,7 @@ static void parameters_json(JsonBuilder *b, const pipeline_opts *o,
     json_builder_begin_object(b);
     if (p->method == PIPE_DIRECT) {
         cli_json_num(b, "R2", p->r2_px);
+        cli_json_num(b, "R2MEM", p->r2_bound_mb);
         cli_json_num(b, "RCUT", p->rcut_px);
         cli_json_num(b, "NTRI", (double)p->ntriples);
         cli_json_num(b, "GAIN", p->gain_adu / p->scale);
@@ -172,6 +173,7 @@ static int opts_from_args(const recon_args *a, pipeline_opts *o)
     o->target_error = a->target_error;
     o->nangles = a->projections;
     o->r2_px = a->r2;
+    o->bispec_mem_mb = a->bispec_mb;
     o->prep = !a->no_prep;
     o->learn_badpix = a->learn_badpix;
     o->detect = !a->no_detect;
@@ -358,7 +360,8 @@ int cmd_recon_shared(int argc, char **argv, const pipeline_share *share)
         {"target-error", 0, 0, G_OPTION_ARG_DOUBLE, &a.target_error, "auto: the 1 - c wanted (default 0.1)", "E"},
         {"skips", 0, 0, G_OPTION_ARG_STRING, &a.skips, "reject,crop,support,angles|all|none (default: all for auto, none otherwise)", "LIST"},
         {"projections", 'p', 0, G_OPTION_ARG_INT, &a.projections, "TSM projection angles (default 180)", "N"},
-        {"r2-px", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size)", "PX"},
+        {"r2-px", 0, 0, G_OPTION_ARG_INT, &a.r2, "direct: |u2| radius in pixels (default 0.14 x frame size, bounded by --bispec-memory-mb)", "PX"},
+        {"bispec-memory-mb", 0, 0, G_OPTION_ARG_DOUBLE, &a.bispec_mb, "direct: the default R2 shrinks so that the bispectrum fits this (default 448)", "MB"},
         {"ref", 0, 0, G_OPTION_ARG_FILENAME, &a.ref, "point-source reference sequence (transfer-function calibration)", "FITS"},
         {"target", 0, 0, G_OPTION_ARG_FILENAME, &a.target, "with --ref: PSF wanted in the result (e.g. cophased)", "FITS"},
         {"wiener", 0, 0, G_OPTION_ARG_DOUBLE, &a.wiener, "reference regulariser (default 1e-3 direct, 0.05 TSM)", "X"},

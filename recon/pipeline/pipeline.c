@@ -256,10 +256,23 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
     double snr = support_snr(sp.ps, support, n, sp.bias);
     bispec_opts bo;
     direct_opts(s, o, g, photons, snr, support, &bo);
-    if (!(b = bispec_new(s->w, s->h, &bo, err))) {
-        rc = err ? err->code : SL_ENOMEM;
-        goto free_all;
+    double budget = o->bispec_mem_mb > 0 ? o->bispec_mem_mb : PIPE_BISPEC_MEM_MB;
+    int bounded = 0, snr_acc = bo.weight == PHASOR_WEIGHT_SNR || bo.refine_weight == PHASOR_WEIGHT_SNR;
+    if (o->r2_px <= 0)
+        bo.r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget, &bounded);
+    for (;;) {
+        if (!(b = bispec_new(s->w, s->h, &bo, err))) {
+            rc = err ? err->code : SL_ENOMEM;
+            goto free_all;
+        }
+        int r2 = o->r2_px > 0 ? bo.r2_px
+                              : pipe_direct_r2_shrink(bo.r2_px, bispec_memory_bytes(b), budget);
+        if (r2 == bo.r2_px)
+            break;
+        bispec_free(b);   /* the model was short: once more, smaller */
+        bo.r2_px = r2, bounded = 1;
     }
+    rep->r2_bound_mb = bounded ? budget : 0;
     if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK ||
         (rc = stream_share_bispec(s, b, err)) != SL_OK ||
         (rc = direct_modulus(s, ref, o, &sp, support, &mod, rep, err)) != SL_OK)

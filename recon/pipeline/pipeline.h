@@ -93,10 +93,17 @@ typedef struct pipeline_share {
  * (rank) order. */
 void pipeline_sums_merge(double *acc, const double *part, size_t n);
 
+/* The direct method's default memory bound for its bispectrum: 448 MB
+ * keeps 1024^2 frames under 1 GB in all (pipeline_r2.c). */
+#define PIPE_BISPEC_MEM_MB 448.0
+
 typedef struct pipeline_opts {
     int method;               /* enum pipeline_method; default PIPE_AUTO */
     int nangles;              /* TSM projections; 0 = 180 */
-    int r2_px;                /* direct: |u2| radius; 0 = 0.14 min(w, h) */
+    int r2_px;                /* direct: |u2| radius; 0 = 0.14 min(w, h),
+                               * bounded by bispec_mem_mb */
+    double bispec_mem_mb;     /* direct, default R2: the bispectrum's
+                               * memory bound; 0 = PIPE_BISPEC_MEM_MB */
     int window;               /* POWSPEC_WIN_*; default TUKEY */
     double tukey_alpha;       /* default 0.25 */
     int prep;                 /* clean frames first (default 1) */
@@ -263,6 +270,7 @@ typedef struct pipeline_report {
     /* direct */
     int window;               /* POWSPEC_WIN_* */
     int r2_px;
+    double r2_bound_mb;       /* R2 bounded by this memory (MB); 0 = not */
     double rcut_px;           /* measured Fourier cut-off */
     long ntriples;            /* closure triangles stored */
     double gain_adu;          /* photon-bias gain; 0 = floor */

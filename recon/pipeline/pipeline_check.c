@@ -64,6 +64,9 @@ int pipeline_opts_check(const pipeline_opts *o, sl_err *e)
     if (o->nangles != 0 && o->nangles < MIN_ANGLES)
         return sl_seterr(e, SL_EINVAL, "projections %d: fewer than %d cannot "
                          "sample a 2-D image (0: 180)", o->nangles, MIN_ANGLES);
+    if (!(o->bispec_mem_mb >= 0))
+        return sl_seterr(e, SL_EINVAL, "bispec memory %g MB: want a size in MB (0: %g)",
+                         o->bispec_mem_mb, PIPE_BISPEC_MEM_MB);
     if (o->r2_px < 0 || o->r2_px > BISPEC_R2_MAX)
         return sl_seterr(e, SL_EINVAL, "r2 %d px: the bispectrum radius is "
                          "1..%d px (0: 0.14 x the frame)", o->r2_px, BISPEC_R2_MAX);

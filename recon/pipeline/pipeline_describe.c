@@ -77,6 +77,8 @@ static void run_keys(keys *k, const pipeline_opts *o, const pipeline_result *r)
         str(k, "RECWIN", p->window == POWSPEC_WIN_NONE ? "none" :
             p->window == POWSPEC_WIN_HANN ? "hann" : "tukey", "frame apodisation");
         num(k, "RECR2", p->r2_px, "[px] bispectrum |u2| radius");
+        if (p->r2_bound_mb > 0)
+            num(k, "RECR2MEM", p->r2_bound_mb, "[MB] RECR2 bounded by this bispectrum size");
         num(k, "RECRCUT", p->rcut_px, "[px] measured Fourier cut-off");
         num(k, "RECNTRI", (double)p->ntriples, "closure triangles stored");
         num(k, "RECMISF", p->misfit, "phase recursion's closure misfit");

@@ -43,6 +43,7 @@ static const optdef defs[] = {
     {"target-error", K_DOUBLE, F(target_error), NULL},
     {"projections", K_INT, F(nangles), NULL},
     {"r2-px", K_INT, F(r2_px), NULL},
+    {"bispec-memory-mb", K_DOUBLE, F(bispec_mem_mb), NULL},
     {"wiener", K_DOUBLE, F(wiener), NULL},
     {"photons", K_DOUBLE, F(photons_per_frame), NULL},
     {"adu-per-photon", K_DOUBLE, F(adu_per_photon), NULL},

@@ -362,6 +362,48 @@ TEST(few_angles_iterative_inverse)
     CHECK(c_it > 0.78 && c_it > c_fbp + 0.15, "c %.3f iterative vs %.3f FBP", c_it, c_fbp);
 }
 
+/* The direct method's default R2 under a memory bound: on 96^2 (R2 13
+ * by default) a 2 MB bound takes R2 down, says so (RECR2MEM), keeps the
+ * bispectrum within 1.25 of the bound (18 bytes a triple plus ~350 a
+ * support frequency) and the binary within the issue's bounds; an R2 the
+ * user gives is kept. */
+TEST(r2_bounded_by_memory)
+{
+    tmp_cubes cubes = {0};
+    CHECK(tmp_sim(&cubes, "binary", 0, 31) == SL_OK, "simulating");
+    int r2[3] = {0, 0, 0};
+    double mem[3] = {0, 0, 0}, sep[3] = {0}, dm[3] = {0};
+    long ntri[3] = {0};
+    int nsup = 0;
+    for (int k = 0; k < 3 && !t->failed; k++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = PIPE_DIRECT, o.fftw_measure = 0;
+        o.bispec_mem_mb = k ? 2 : 0;
+        o.r2_px = k == 2 ? 13 : 0;
+        pipeline_result r;
+        sl_err e;
+        const char *paths[] = {cubes.path[0]};
+        CHECK(pipeline_run(paths, 1, &o, &r, &e) == SL_OK, "%s", e.msg);
+        binary_result b;
+        int rc = metrics_binary(r.image, r.width, r.height, &b);
+        r2[k] = r.report.r2_px, mem[k] = r.report.r2_bound_mb, ntri[k] = r.report.ntriples;
+        nsup = (int)(M_PI * r.report.rcut_px * r.report.rcut_px / 2);
+        sep[k] = b.sep_px * r.plate_scale_arcsec, dm[k] = b.dm_mag;
+        pipeline_result_clear(&r);
+        CHECK(rc == SL_OK, "run %d: no binary", k);
+    }
+    tmp_clean(&cubes);
+    CHECK(!t->failed, "%s", t->msg);
+    CHECK(r2[0] == 13 && mem[0] == 0, "unbounded: R2 %d, bound %g MB", r2[0], mem[0]);
+    CHECK(r2[1] < r2[0] && r2[1] >= 4 && mem[1] == 2, "2 MB: R2 %d, bound %g MB", r2[1], mem[1]);
+    double bytes = 18.0 * ntri[1] + 350.0 * nsup;
+    CHECK(bytes <= 1.25 * 2 * 1048576, "2 MB: %ld triples, ~%.2f MB", ntri[1], bytes / 1048576);
+    CHECK(r2[2] == 13 && mem[2] == 0, "--r2-px 13 under 2 MB: R2 %d, bound %g", r2[2], mem[2]);
+    CHECK(fabs(sep[1] - 0.45) < 0.1 * 0.45 && fabs(dm[1] - 1) < 0.1,
+          "bounded R2 %d: sep %.3f\", dm %.3f; truth 0.45\", 1", r2[1], sep[1], dm[1]);
+}
+
 TEST(bad_inputs_are_named)
 {
     pipeline_opts o;
@@ -376,6 +418,7 @@ TEST(bad_inputs_are_named)
 }
 
 TC_MAIN(TC_CASE(every_method_measures_the_binary), TC_CASE(photon_counting_cube),
+        TC_CASE(r2_bounded_by_memory),
         TC_CASE(tsm_corrected_phases), TC_CASE(tsm_corrected_phases_need_photons),
         TC_CASE(camera_gain_gives_photon_statistics),
         TC_CASE(few_angles_iterative_inverse),

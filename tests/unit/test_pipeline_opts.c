@@ -15,7 +15,8 @@ static const char *value_for(const char *name)
 {
     static const struct { const char *name, *value; } v[] = {
         {"method", "direct"}, {"skips", "crop"}, {"target-error", "0.05"},
-        {"projections", "90"}, {"r2-px", "20"}, {"wiener", "0.01"}, {"photons", "1e4"},
+        {"projections", "90"}, {"r2-px", "20"}, {"bispec-memory-mb", "256"},
+        {"wiener", "0.01"}, {"photons", "1e4"},
         {"adu-per-photon", "2"}, {"tsm-inverse", "iter"}, {"tsm-phases", "corrected"},
         {"window", "hann"}, {"saturation-adu", "4095"}, {"threads", "2"},
         {"phase-weights", "unit"}, {"refine", "5"}};

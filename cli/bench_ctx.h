@@ -11,6 +11,7 @@
 
 typedef struct bench_args {
     gboolean quick, paper, speed, skips_report, estimate, keep_data, blind, overwrite, mpi;
+    gboolean scaling;
     char *scenes, *sizes, *frames, *photons, *methods, *projections, *r2;
     char *seps, *dms, *ref, *csv, *png, *catalog, *dir, *targets, *skips;
     char *conditions, *md;

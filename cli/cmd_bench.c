@@ -36,6 +36,7 @@
 
 #include "bench_blind.h"
 #include "bench_mpi.h"
+#include "bench_scaling.h"
 #include "bench_cli.h"
 #include "bench_ctx.h"
 #include "outfile.h"
@@ -475,6 +476,7 @@ int cmd_bench(int argc, char **argv)
         {"blind", 0, 0, G_OPTION_ARG_NONE, &a.blind, "camera-like blind cubes, one factor at a time, default options (with --quick: 4 conditions, < 1 min; CSV default out/bench/blind.csv)", NULL},
         {"conditions", 0, 0, G_OPTION_ARG_STRING, &a.conditions, "--blind: only these conditions (e.g. baseline,hot-50)", "LIST"},
         {"mpi", 0, 0, G_OPTION_ARG_NONE, &a.mpi, "specklab-mpi recon on 1, 2 and 4 ranks (oversubscribed): time, parallel efficiency, and a model for N nodes (bytes of sums reduced per run against the network's bandwidth); --methods, --sizes, --frames, --repeat, --threads (per rank, default 1) apply", NULL},
+        {"scaling", 0, 0, G_OPTION_ARG_NONE, &a.scaling, "direct, tsm and tsm-fourier at 1, 2, 4 ... threads: wall time per stage (open, plan, read, frame, accum, solve, measure), speedup and parallel fraction; --sizes, --frames, --methods, --repeat, --estimate apply (default 200^2 x 100)", NULL},
         {NULL, 0, 0, 0, NULL, NULL, NULL}};
     GOptionContext *ctx_ = g_option_context_new("- run time against error on simulated cubes");
     g_option_context_add_main_entries(ctx_, entries, NULL);
@@ -507,7 +509,8 @@ int cmd_bench(int argc, char **argv)
         fprintf(stderr, "specklab bench: --conditions needs --blind\n");
         goto free_ctx;
     }
-    status = a.mpi ? bench_mpi_run(&a) : a.blind ? run_blind(&a) : bench_main(&a);
+    status = a.mpi ? bench_mpi_run(&a) : a.scaling ? bench_scaling_run(&a)
+           : a.blind ? run_blind(&a) : bench_main(&a);
 free_ctx:
     g_option_context_free(ctx_);
     g_free(a.scenes); g_free(a.sizes); g_free(a.frames); g_free(a.photons);

@@ -22,12 +22,7 @@ void pipeline_result_clear(pipeline_result *r)
     r->image = NULL;
 }
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
+static double now_s(void) { return stream_now_s(); }
 
 static int ps_add(void *h, const float *f) { return powspec_add(h, f); }
 static int bs_add(void *h, const float *f) { return bispec_add(h, f); }
@@ -229,6 +224,33 @@ static int direct_modulus(stream *s, stream *ref, const pipeline_opts *o,
     return rc;
 }
 
+/* The bispectrum handle with bo's options; the default R2 is bounded by
+ * the memory (pipeline_r2.c): modelled first, then checked against the
+ * handle built and made again smaller when the model was short. */
+static bispec *direct_bispec(const stream *s, const pipeline_opts *o,
+                             const unsigned char *support, double rcut, bispec_opts *bo,
+                             pipeline_report *rep, sl_err *err)
+{
+    double budget = o->bispec_mem_mb > 0 ? o->bispec_mem_mb : PIPE_BISPEC_MEM_MB;
+    int bounded = 0;
+    int snr_acc = bo->weight == PHASOR_WEIGHT_SNR || bo->refine_weight == PHASOR_WEIGHT_SNR;
+    if (o->r2_px <= 0)
+        bo->r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget, &bounded);
+    for (;;) {
+        bispec *b = bispec_new(s->w, s->h, bo, err);
+        if (!b)
+            return NULL;
+        int r2 = o->r2_px > 0 ? bo->r2_px
+                              : pipe_direct_r2_shrink(bo->r2_px, bispec_memory_bytes(b), budget);
+        if (r2 == bo->r2_px) {
+            rep->r2_bound_mb = bounded ? budget : 0;
+            return b;
+        }
+        bispec_free(b);
+        bo->r2_px = r2, bounded = 1;
+    }
+}
+
 static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
                       double photons, double g, float *img, pipeline_report *rep,
                       pipeline_binary *bin, sl_err *err)
@@ -255,37 +277,34 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         rep->gain_e_per_adu = s->scale / sp.g_floor, rep->gain_source = PIPE_GAIN_FLOOR;
     double snr = support_snr(sp.ps, support, n, sp.bias);
     bispec_opts bo;
+    double t_plan = now_s();
     direct_opts(s, o, g, photons, snr, support, &bo);
-    double budget = o->bispec_mem_mb > 0 ? o->bispec_mem_mb : PIPE_BISPEC_MEM_MB;
-    int bounded = 0, snr_acc = bo.weight == PHASOR_WEIGHT_SNR || bo.refine_weight == PHASOR_WEIGHT_SNR;
-    if (o->r2_px <= 0)
-        bo.r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget, &bounded);
-    for (;;) {
-        if (!(b = bispec_new(s->w, s->h, &bo, err))) {
-            rc = err ? err->code : SL_ENOMEM;
-            goto free_all;
-        }
-        int r2 = o->r2_px > 0 ? bo.r2_px
-                              : pipe_direct_r2_shrink(bo.r2_px, bispec_memory_bytes(b), budget);
-        if (r2 == bo.r2_px)
-            break;
-        bispec_free(b);   /* the model was short: once more, smaller */
-        bo.r2_px = r2, bounded = 1;
+    if (!(b = direct_bispec(s, o, support, rcut, &bo, rep, err))) {
+        rc = err ? err->code : SL_ENOMEM;
+        goto free_all;
     }
-    rep->r2_bound_mb = bounded ? budget : 0;
+    rep->stage_s[PIPE_STAGE_PLAN] = now_s() - t_plan;
     if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK ||
-        (rc = stream_share_bispec(s, b, err)) != SL_OK ||
-        (rc = direct_modulus(s, ref, o, &sp, support, &mod, rep, err)) != SL_OK)
+        (rc = stream_share_bispec(s, b, err)) != SL_OK)
+        goto free_all;
+    double t_solve = now_s(), k_fed = bispec_kernel_s(b);
+    if ((rc = direct_modulus(s, ref, o, &sp, support, &mod, rep, err)) != SL_OK)
         goto free_all;
     if ((rc = bispec_image(b, mod, img)) != SL_OK) {
         sl_seterr(err, rc, "%s", bispec_errmsg(b));
         goto free_all;
     }
+    double t_meas = now_s();
     if (o->closure_binary) {
         pipe_binary_in bi = {.b = b, .ps2d = sp.ps, .rcut_px = rcut, .noise = sp.bias,
                              .nframes = bispec_nframes(b)};
         pipe_binary_measure(&bi, img, s->w, s->h, bin);
     }
+    /* the last, partial batch is flushed by bispec_image: accumulation */
+    rep->stage_s[PIPE_STAGE_ACCUM] = bispec_kernel_s(b);
+    rep->stage_s[PIPE_STAGE_SOLVE] = t_meas - t_solve - (bispec_kernel_s(b) - k_fed);
+    rep->stage_s[PIPE_STAGE_MEASURE] = now_s() - t_meas;
+    s->frame_s -= k_fed;   /* FRAME: the feed less its triple kernel */
     rep->window = o->window;
     rep->r2_px = bo.r2_px;
     rep->rcut_px = rcut;
@@ -390,7 +409,9 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
     to.read_noise_adu = stream_read_noise_adu(s, photons);
     tsm *t = NULL, *tr = NULL;
     double *ps_ref = NULL, *ps_tgt = NULL;
+    double t_plan = now_s(), fed0 = s->read_s + s->frame_s;
     int rc = tsm_sequence(s, &to, &t, err);
+    rep->stage_s[PIPE_STAGE_PLAN] = now_s() - t_plan - (s->read_s + s->frame_s - fed0);
     if (rc != SL_OK)
         return rc;
     if (ref) {
@@ -416,12 +437,16 @@ static int run_tsm(stream *s, stream *ref, const pipeline_opts *o,
         if (rc != SL_OK)
             goto free_all;
     }
+    double t_solve = now_s();
     if ((rc = tsm_result(t, img)) != SL_OK) {
         sl_seterr(err, rc, "%s", tsm_errmsg(t));
         goto free_all;
     }
+    double t_meas = now_s();
     if (o->closure_binary && (rc = tsm_measure_binary(t, img, s->w, s->h, bin, err)) != SL_OK)
         goto free_all;
+    rep->stage_s[PIPE_STAGE_SOLVE] = t_meas - t_solve;
+    rep->stage_s[PIPE_STAGE_MEASURE] = now_s() - t_meas;
     rep->nangles = tsm_nangles(t);
     rep->cutoff_cyc_px = (double)(tsm_nfreq(t) - 1) / tsm_nproj(t);
     rep->npairs = tsm_npairs(t);
@@ -504,6 +529,7 @@ int pipeline_run(const char *const *paths, int npaths,
         rep->gain_source = o->adu_per_photon > 0 ? PIPE_GAIN_OPTION : PIPE_GAIN_HEADER;
     }
     rep->scale = s.scale;
+    rep->stage_s[PIPE_STAGE_OPEN] = now_s() - t0 - (s.read_s + s.frame_s);
     rc = eo.method == PIPE_DIRECT
              ? run_direct(&s, refp, &eo, photons, g, out->image, rep, &out->binary, err)
              : run_tsm(&s, refp, &eo, photons, out->image, rep, &out->binary, err);

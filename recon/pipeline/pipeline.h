@@ -257,8 +257,26 @@ typedef struct pipeline_probe_report {  /* the skips and auto */
     double target_error, pred_error, pred_cost_s;
 } pipeline_probe_report;
 
+/* Where pipeline_run's wall time went (pipeline_report.stage_s; bench
+ * --scaling prints it per thread count). */
+enum pipeline_stage {
+    PIPE_STAGE_OPEN = 0,  /* open, learn the detector, probe (auto, skips) */
+    PIPE_STAGE_PLAN,      /* the estimator's FFT plans and tables (direct:
+                           * R2, the triple list) */
+    PIPE_STAGE_READ,      /* read and clean the frames, every pass */
+    PIPE_STAGE_FRAME,     /* per frame: FFTs, projections, the sums
+                           * (direct: less the triple kernel) */
+    PIPE_STAGE_ACCUM,     /* direct: the bispectrum's triple kernel */
+    PIPE_STAGE_SOLVE,     /* the image from the sums: phases, modulus,
+                           * inverse */
+    PIPE_STAGE_MEASURE,   /* the binary fits (--binary) */
+    PIPE_NSTAGES
+};
+const char *pipeline_stage_name(int stage);
+
 typedef struct pipeline_report {
     int method;               /* what ran: auto's choice applied */
+    double stage_s[PIPE_NSTAGES]; /* wall seconds per enum pipeline_stage */
     int nframes_in;           /* frames in the sequence */
     double photons;           /* per frame for the bias; 0 unknown */
     int photon_source;        /* enum pipeline_photon_source */

@@ -44,6 +44,12 @@ const char *pipeline_photon_source_name(int s)
 }
 
 static const char *gain_names[] = {"none", "option", "header", "flux", "floor"};
+static const char *stage_names[] = {"open", "plan", "read", "frame", "accum", "solve", "measure"};
+
+const char *pipeline_stage_name(int s)
+{
+    return s >= 0 && s < PIPE_NSTAGES ? stage_names[s] : "unknown";
+}
 
 const char *pipeline_gain_source_name(int s)
 {

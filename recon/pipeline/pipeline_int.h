@@ -49,6 +49,9 @@ typedef struct stream {
     const pipeline_share *share;
     int k0, k1;
     int has_ref;          /* a reference sequence is reduced after this */
+    /* wall time in stream_feed: reading and cleaning frames (read_s) and
+     * the estimator's add (frame_s); pipeline_report.stage_s */
+    double read_s, frame_s;
     int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
@@ -67,6 +70,8 @@ int stream_next(stream *s);
 /* Feed every (cleaned) frame of s to add(h, frame).  Cost: one read and
  * one prep per frame; allocation-free. */
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
+/* CLOCK_MONOTONIC in seconds. */
+double stream_now_s(void);
 /* Expect passes more feeds of every frame (for the progress estimate). */
 void stream_expect_passes(stream *s, int passes);
 

@@ -12,6 +12,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "pipeline_int.h"
 #include "rawstats.h"
@@ -287,20 +288,27 @@ static int counted_add(void *ctx, const float *frame)
 {
     counted *c = ctx;
     stream *s = c->s;
-    if (++s->fed > s->feed_total)
-        s->feed_total = s->fed + (s->k1 - s->k0); /* one more pass than planned */
-    s->progress(s->progress_ctx, s->fed, s->feed_total, c->what);
-    return c->add ? c->add(c->h, frame) : SL_OK;
+    if (s->progress) {
+        if (++s->fed > s->feed_total)
+            s->feed_total = s->fed + (s->k1 - s->k0); /* one more pass than planned */
+        s->progress(s->progress_ctx, s->fed, s->feed_total, c->what);
+    }
+    double t0 = stream_now_s();
+    int rc = c->add ? c->add(c->h, frame) : SL_OK;
+    s->frame_s += stream_now_s() - t0;
+    return rc;
 }
 
-int stream_feed(stream *s, add_fn add, void *h, const char *what,
-                sl_err *err)
+double stream_now_s(void)
 {
-    counted c = {s, add, h, what};
-    if (s->progress) {
-        add = counted_add;
-        h = &c;
-    }
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* The pass, its time split between reading (and cleaning) and add. */
+static int feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
+{
     if (s->pb)
         return skip_feed(s, add, h, what, err);
     int rc = cube_reader_seek(s->rd, s->k0), k = s->k0;
@@ -316,8 +324,20 @@ int stream_feed(stream *s, add_fn add, void *h, const char *what,
     return SL_OK;
 }
 
+int stream_feed(stream *s, add_fn add, void *h, const char *what,
+                sl_err *err)
+{
+    counted c = {s, add, h, what};
+    double t0 = stream_now_s(), f0 = s->frame_s;
+    int rc = feed(s, counted_add, &c, what, err);
+    s->read_s += stream_now_s() - t0 - (s->frame_s - f0);
+    return rc;
+}
+
 void stream_report(const stream *s, pipeline_report *r)
 {
+    r->stage_s[PIPE_STAGE_READ] = s->read_s;
+    r->stage_s[PIPE_STAGE_FRAME] = s->frame_s;
     memset(&r->prep, 0, sizeof r->prep);
     memset(&r->detector, 0, sizeof r->detector);
     if (s->pp)

@@ -19,6 +19,7 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 
 void bispec_opts_defaults(bispec_opts *o)
@@ -459,6 +460,8 @@ void bispec_flush(bispec *b)
             for (int c = 0; c < 2; c++)
                 memset(b->fb + (l * 2 + c) * K + b->nb, 0,
                        (size_t)(K - b->nb) * sizeof(float));
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
     pthread_t th[64];
     kjob jobs[64];
     int started = 0;
@@ -475,7 +478,11 @@ void bispec_flush(bispec *b)
     for (int r = 1; r <= started; r++)
         pthread_join(th[r], NULL);
     b->nb = 0;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    b->kernel_s += (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
 }
+
+double bispec_kernel_s(const bispec *b) { return b ? b->kernel_s : 0; }
 
 int bispec_add(bispec *b, const float *frame)
 {

@@ -112,6 +112,8 @@ size_t bispec_ntriples(const bispec *b);
 int bispec_nfreq(const bispec *b);       /* |S n H|, DC included */
 size_t bispec_ndisk(const bispec *b);    /* stored u2 offsets (nd) */
 size_t bispec_memory_bytes(const bispec *b);
+/* Wall seconds spent in the triple kernel so far (the batches flushed). */
+double bispec_kernel_s(const bispec *b);
 
 /* Triple t (0 <= t < ntriples): legs as signed frequencies (p, q), and
  * the photon-bias-corrected mean bispectrum and phase-recovery weight. */

@@ -32,6 +32,7 @@ struct bispec {
     float *accf, *acc2f;
     float *fb;               /* 2F legs x (K re + K im) */
     int nb;                  /* frames in the current batch */
+    double kernel_s;         /* wall time in bispec_flush's triple loop */
     int n;                   /* frames added */
     double *psum, *xsum;     /* per frequency: sum |F|^2, sum X */
     double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */

@@ -193,4 +193,53 @@ TEST(existing_markdown_needs_overwrite)
     CHECK(r3 == 1 && replaced, "--overwrite replaces it (rc %d, replaced %d)", r3, replaced);
 }
 
-TC_MAIN(TC_CASE(markdown_rows_match_the_csv), TC_CASE(existing_markdown_needs_overwrite))
+/* `bench --scaling`: for each method a row per thread count (1 and 2 at
+ * least) whose stages account for its wall time (the stages partition
+ * pipeline_run: their sum within 5 % + 5 ms of the total, never above
+ * it by more than the clock's reading), speedup 1.00 at one thread, and
+ * the parallel-fraction line; a bad method is named. */
+TEST(scaling_stages_account_for_the_time)
+{
+    fx f;
+    CHECK(fx_start(&f) == 0, "mkdtemp");
+    int rc = run(&f, cmd_bench, "bench", "--scaling", "--sizes", "48", "--frames", "8",
+                 "--estimate", NULL);
+    char out[8192];
+    snprintf(out, sizeof out, "%s", f.out);
+    int bad = run(&f, cmd_bench, "bench", "--scaling", "--sizes", "48", "--frames", "8",
+                  "--methods", "direct,fast", NULL);
+    int bad_named = strstr(f.err, "'fast'") != NULL;
+    fx_stop(&f);
+    CHECK(rc == 0, "exit %d: %s", rc, out);
+    static const char *const methods[] = {"direct", "tsm", "tsm-fourier"};
+    for (int m = 0; m < 3; m++) {
+        int rows = 0;
+        for (const char *l = out; (l = strstr(l, methods[m])) != NULL; l++) {
+            if (l != out && l[-1] != '\n')
+                continue;
+            double v[10];
+            int th;
+            char name[16];
+            if (sscanf(l, "%15s %d %lf %lf %lf %lf %lf %lf %lf %lf %lf", name, &th, &v[0],
+                       &v[1], &v[2], &v[3], &v[4], &v[5], &v[6], &v[7], &v[8]) != 11 ||
+                strcmp(name, methods[m]))
+                continue;
+            double sum = 0;
+            for (int k = 1; k <= 7; k++)
+                sum += v[k];
+            CHECK(sum <= v[0] + 1e-3 && sum >= 0.95 * v[0] - 0.005,
+                  "%s at %d threads: stages sum %.4f s of %.4f s", methods[m], th, sum, v[0]);
+            CHECK(th != 1 || fabs(v[8] - 1) < 1e-9, "%s: speedup %.2f at one thread",
+                  methods[m], v[8]);
+            rows++;
+        }
+        char line[64];
+        snprintf(line, sizeof line, "%s, 1 -> ", methods[m]);
+        CHECK(rows >= 2 && strstr(out, line), "%s: %d rows, fraction line %d", methods[m], rows,
+              strstr(out, line) != NULL);
+    }
+    CHECK(bad == 2 && bad_named, "a bad method: exit %d, named %d", bad, bad_named);
+}
+
+TC_MAIN(TC_CASE(markdown_rows_match_the_csv), TC_CASE(existing_markdown_needs_overwrite),
+        TC_CASE(scaling_stages_account_for_the_time))

@@ -1,0 +1,166 @@
+/* bench_scaling.c - see bench_scaling.h.
+ *
+ * Each point is pipeline_run in this process (after one untimed run at
+ * the same thread count, so that FFT plans and the page cache are warm:
+ * each thread count plans its own per-thread handles), the median of
+ * --repeat runs by wall time; the stages are pipeline_report.stage_s.
+ * The parallel fraction is Amdahl's from one to T threads:
+ *     p = (1 - t_T / t_1) / (1 - 1 / T)
+ * for the whole run and for each stage: a stage that does not gain is
+ * serial, whatever its share.  On a shared machine the load average is
+ * printed first: a busy machine makes every thread count look worse.
+ */
+#include "bench_scaling.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "bench/bench.h"
+#include "pipeline/pipeline.h"
+
+#define MAX_T 6
+
+typedef struct point {
+    double total_s, stage_s[PIPE_NSTAGES];
+} point;
+
+/* One method at nthreads: the median run by wall time into *pt. */
+static int measure(const char *cube, int method, int nthreads, int repeat, int measure_plans,
+                   point *pt)
+{
+    point runs[BENCH_MAX_REPEAT];
+    for (int r = 0; r < repeat; r++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = method;
+        o.nthreads = nthreads;
+        o.fftw_measure = measure_plans;
+        pipeline_result res;
+        sl_err e;
+        const char *paths[] = {cube};
+        if (pipeline_run(paths, 1, &o, &res, &e) != SL_OK) {
+            fprintf(stderr, "specklab bench --scaling: %s: %s\n", pipeline_method_name(method),
+                    e.msg);
+            return 1;
+        }
+        runs[r].total_s = res.elapsed_s;
+        memcpy(runs[r].stage_s, res.report.stage_s, sizeof runs[r].stage_s);
+        pipeline_result_clear(&res);
+    }
+    for (int i = 1; i < repeat; i++)   /* insertion sort by total */
+        for (int j = i; j > 0 && runs[j].total_s < runs[j - 1].total_s; j--) {
+            point t = runs[j];
+            runs[j] = runs[j - 1], runs[j - 1] = t;
+        }
+    *pt = runs[repeat / 2];
+    return 0;
+}
+
+static double amdahl(double t1, double tn, int n)
+{
+    return t1 > 0 && n > 1 ? (1 - tn / t1) / (1 - 1.0 / n) : NAN;
+}
+
+static void print_row(const char *method, int nthreads, const point *p, const point *one)
+{
+    printf("%-12s %7d %8.3f", method, nthreads, p->total_s);
+    for (int k = 0; k < PIPE_NSTAGES; k++)
+        printf(" %7.3f", p->stage_s[k]);
+    printf(" %7.2f\n", one->total_s / p->total_s);
+}
+
+/* The fraction of the run, and of each stage, that gained from 1 to n. */
+static void print_fraction(const char *method, const point *one, const point *pn, int n)
+{
+    printf("%s, 1 -> %d threads: parallel fraction %.0f %% (Amdahl); per stage (share of "
+           "the 1-thread run, fraction):", method, n, 100 * amdahl(one->total_s, pn->total_s, n));
+    for (int k = 0; k < PIPE_NSTAGES; k++)
+        if (one->stage_s[k] > 0.005 * one->total_s)
+            printf(" %s %.0f %%, %.0f %%;", pipeline_stage_name(k),
+                   100 * one->stage_s[k] / one->total_s,
+                   100 * amdahl(one->stage_s[k], pn->stage_s[k], n));
+    printf("\n");
+}
+
+/* The thread counts: 1, 2, 4 ... up to the cores (at least 1 and 2). */
+static int thread_counts(int *t)
+{
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    int n = 0;
+    for (int k = 1; n < MAX_T && (k <= cores || k <= 2); k *= 2)
+        t[n++] = k;
+    return n;
+}
+
+static int run_methods(const bench_args *a, const char *cube, char **methods)
+{
+    int t[MAX_T], nt = thread_counts(t);
+    printf("%-12s %7s %8s", "method", "threads", "total_s");
+    for (int k = 0; k < PIPE_NSTAGES; k++)
+        printf(" %7s", pipeline_stage_name(k));
+    printf(" %7s\n", "speedup");
+    for (int m = 0; methods[m]; m++) {
+        int id;
+        if (pipeline_method_parse(methods[m], &id) != SL_OK || id == PIPE_AUTO) {
+            fprintf(stderr, "specklab bench --scaling: method '%s': want direct, tsm or "
+                    "tsm-fourier\n", methods[m]);
+            return 2;
+        }
+        point warm, pts[MAX_T];
+        for (int i = 0; i < nt; i++) {
+            /* untimed first: each thread count plans its own handles */
+            if (measure(cube, id, t[i], 1, !a->estimate, &warm) ||
+                measure(cube, id, t[i], a->repeat, !a->estimate, &pts[i]))
+                return 1;
+            print_row(methods[m], t[i], &pts[i], &pts[0]);
+            fflush(stdout);
+        }
+        print_fraction(methods[m], &pts[0], &pts[nt - 1], t[nt - 1]);
+    }
+    return 0;
+}
+
+int bench_scaling_run(const bench_args *a)
+{
+    int size = a->sizes ? atoi(a->sizes) : 200, frames = a->frames ? atoi(a->frames) : 100;
+    if (size < 16 || frames < 2) {
+        fprintf(stderr, "specklab bench --scaling: --sizes >= 16 and --frames >= 2\n");
+        return 2;
+    }
+    char *dir = a->dir ? g_strdup(a->dir) : g_dir_make_tmp("specklab-scaling-XXXXXX", NULL);
+    char *cube = dir ? g_build_filename(dir, "cube.fits", NULL) : NULL;
+    char **methods = g_strsplit(a->methods ? a->methods : "direct,tsm,tsm-fourier", ",", -1);
+    int rc = 1;
+    bench_sim s;
+    bench_sim_defaults(&s);
+    s.scene = "binary";
+    s.width = s.height = size;
+    s.nframes = frames;
+    s.seed = (uint64_t)a->seed;
+    sl_err e;
+    if (!cube || g_mkdir_with_parents(dir, 0755) != 0 ||
+        bench_sim_write(&s, cube, NULL, &e) != SL_OK) {
+        fprintf(stderr, "specklab bench --scaling: simulating: %s\n", cube ? e.msg : "no directory");
+        goto free_all;
+    }
+    double load[1] = {0};
+    if (getloadavg(load, 1) != 1)
+        load[0] = NAN;
+    printf("specklab bench --scaling: %d^2 x %d frames, noiseless binary, %s plans, %ld cores, "
+           "load average %.1f before, median of %d; stages in s (pipeline.h, enum "
+           "pipeline_stage)\n", size, frames, a->estimate ? "ESTIMATE" : "MEASURE",
+           sysconf(_SC_NPROCESSORS_ONLN), load[0], a->repeat);
+    rc = run_methods(a, cube, methods);
+free_all:
+    if (cube && !a->dir) {
+        unlink(cube);
+        rmdir(dir);
+    }
+    g_strfreev(methods);
+    g_free(cube);
+    g_free(dir);
+    return rc;
+}

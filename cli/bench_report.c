@@ -392,7 +392,7 @@ static void series_key(const bcli_row *r, char *buf, size_t n)
     else /* pipeline.h: 0 projections means 180 */
         snprintf(par, sizeof par, " %d%s", r->nangles > 0 ? r->nangles : 180,
                  r->inverse == TSM_INV_ITER ? " iter" : "");
-    snprintf(buf, n, "%s%s%s", pipeline_method_name(r->method), par, sk);
+    snprintf(buf, n, "%s%s%.40s", pipeline_method_name(r->method), par, sk);
 }
 
 typedef struct chart_set {

@@ -169,7 +169,7 @@ TEST(existing_markdown_needs_overwrite)
     }
     int r1 = run(&f, cmd_bench, "bench", POINTS, "--csv", "none", "--md", md, NULL);
     char err1[512];
-    snprintf(err1, sizeof err1, "%s", f.err);
+    snprintf(err1, sizeof err1, "%.511s", f.err);
     int ran1 = strstr(f.out, "binary 6/1") != NULL;
     char *text = NULL;
     g_file_get_contents(md, &text, NULL, NULL);
@@ -177,7 +177,7 @@ TEST(existing_markdown_needs_overwrite)
     g_free(text);
     int r2 = run(&f, cmd_bench, "bench", POINTS, "--csv", md, "--md", md, "--overwrite", NULL);
     char err2[512];
-    snprintf(err2, sizeof err2, "%s", f.err);
+    snprintf(err2, sizeof err2, "%.511s", f.err);
     int r3 = run(&f, cmd_bench, "bench", POINTS, "--csv", "none", "--md", md, "--overwrite",
                  NULL);
     text = NULL;

@@ -197,7 +197,7 @@ TEST(binary_closure_phases_agree_with_the_closure_fit)
                  cube, NULL);
     int ro = rs ? -1 : run(&f, cmd_oifits, "oifits", cube, "-o", oi, NULL);
     char msg[4096];
-    snprintf(msg, sizeof msg, "%s%s", f.out, f.err);
+    snprintf(msg, sizeof msg, "%.2047s%.2047s", f.out, f.err);
     int nv = 0, finite = 0, st = -1, st3 = -1;
     double vmax = 0, emin = 0;
     char uu[FLEN_VALUE] = "", pu[FLEN_VALUE] = "";
@@ -253,7 +253,7 @@ TEST(point_source_closes)
     static t3set ts;
     int st = ro ? -1 : read_t3(oi, &ts);
     char out[4096];
-    snprintf(out, sizeof out, "%s%s", f.out, f.err);
+    snprintf(out, sizeof out, "%.2047s%.2047s", f.out, f.err);
     g_free(cube);
     g_free(oi);
     fx_stop(&f);
@@ -280,18 +280,18 @@ TEST(options_and_files)
                  blind, NULL);
     char e1[512], e2[512], e3[512], e4[512], e5[512];
     int r1 = run(&f, cmd_oifits, "oifits", blind, "-o", oi, NULL);
-    snprintf(e1, sizeof e1, "%s", f.err);
+    snprintf(e1, sizeof e1, "%.511s", f.err);
     int r2 = run(&f, cmd_oifits, "oifits", blind, "--mask", "nrm17", "-o", oi, NULL);
-    snprintf(e2, sizeof e2, "%s", f.err);
+    snprintf(e2, sizeof e2, "%.511s", f.err);
     int r3 = run(&f, cmd_oifits, "oifits", cube, "-o", cube, "--overwrite", NULL);
-    snprintf(e3, sizeof e3, "%s", f.err);
+    snprintf(e3, sizeof e3, "%.511s", f.err);
     int r4 = run(&f, cmd_oifits, "oifits", cube, "--mask", "full", "-o", oi, NULL);
-    snprintf(e4, sizeof e4, "%s", f.err);
+    snprintf(e4, sizeof e4, "%.511s", f.err);
     int r5 = run(&f, cmd_oifits, "oifits", cube, "-o", oi, "-q", NULL);
     struct stat s1 = {0}, s2 = {0};
     stat(oi, &s1);
     int r6 = run(&f, cmd_oifits, "oifits", cube, "-o", oi, NULL);
-    snprintf(e5, sizeof e5, "%s", f.err);
+    snprintf(e5, sizeof e5, "%.511s", f.err);
     int r7 = run(&f, cmd_oifits, "oifits", cube, "-o", oi, "--overwrite", "--target", "HD 1",
                  "-q", NULL);
     stat(oi, &s2);

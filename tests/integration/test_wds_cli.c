@@ -33,7 +33,7 @@ TEST(binary_cube_line_matches_the_truth)
                  cube, NULL);
     int rw = rs ? -1 : run(&f, cmd_binary, "binary", "--wds", cube, NULL);
     char out[4096];
-    snprintf(out, sizeof out, "%s%s", f.out, f.err);
+    snprintf(out, sizeof out, "%.2047s%.2047s", f.out, f.err);
     cube_meta m;
     cube_meta_init(&m);
     cube_reader *cr = NULL;
@@ -82,12 +82,12 @@ TEST(unresolved_ambiguous_and_refused)
     char o1[512], o2[512], e3[512];
     /* the sky itself: one star, nothing beside it */
     int r1 = run(&f, cmd_binary, "binary", "--wds", pt, "--ext", "TRUTH", NULL);
-    snprintf(o1, sizeof o1, "%s", f.out);
+    snprintf(o1, sizeof o1, "%.511s", f.out);
     /* an equal pair through the cophased mask: which star is which is unknown */
     int r2 = run(&f, cmd_binary, "binary", "--wds", eq, "--ext", "COPHASED", NULL);
-    snprintf(o2, sizeof o2, "%s", f.out);
+    snprintf(o2, sizeof o2, "%.511s", f.out);
     int r3 = run(&f, cmd_binary, "binary", "--wds", blind, NULL);
-    snprintf(e3, sizeof e3, "%s", f.err);
+    snprintf(e3, sizeof e3, "%.511s", f.err);
     g_free(pt);
     g_free(eq);
     g_free(blind);

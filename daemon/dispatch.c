@@ -3,6 +3,7 @@
  * read-only commands are in query.c. */
 #include "dispatch_int.h"
 #include "recon_opts.h"
+#include "runstate.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -360,15 +361,11 @@ static char *cmd_abort_run(request *rq)
     switch (runner_abort(rq->d->run, uuid, &rq->q)) {
     case RUNNER_ABORTING:
         return NULL;   /* the runner replies once the run has stopped */
-    case RUNNER_DEQUEUED: {
-        if (catalog_run_set_state(rq->d->cat, uuid, CATALOG_ABORTED, "aborted by request") !=
-            SL_OK)
+    case RUNNER_DEQUEUED:   /* one attempt: the main loop does not wait on a lock */
+        if (runstate_set(rq->d->cat, NULL, rq->d->srv, uuid, CATALOG_ABORTED,
+                         "aborted by request", NULL, NULL) != SL_OK)
             return reply_err(rq, "internal", "%s", catalog_errmsg(rq->d->cat));
-        char *ev = proto_event_state(uuid, CATALOG_ABORTED, "aborted by request");
-        server_event(rq->d->srv, uuid, ev);
-        g_free(ev);
         return reply_ok(rq, run_state_node(uuid, "aborted"));
-    }
     default:
         return reply_err(rq, "conflict", "run %s is %s but not in this daemon's queue", uuid,
                          catalog_state_name(st));

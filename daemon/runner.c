@@ -4,6 +4,7 @@
 #include "runner_int.h"
 
 #include "camlink.h"
+#include "runstate.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -27,24 +28,18 @@ int runner_stopping(void *runner_arg)
     return s;
 }
 
-void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason)
+static void note_state(void *runner_arg, const char *uuid, catalog_state st)
 {
-    catlock_state a = {uuid, st, reason};
-    char what[80];
-    snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
-    if (catlock_write(r->cat, &r->cl, what, catlock_set_state, &a) != SL_OK) {
-        g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
-        return;
-    }
-    if (reason)
-        g_message("run %s: %s (%s)", uuid, catalog_state_name(st), reason);
-    else
-        g_message("run %s: %s", uuid, catalog_state_name(st));
+    runner *r = runner_arg;
     g_mutex_lock(&r->mu);
     if (r->cur && !strcmp(r->cur->uuid, uuid))
         r->st.state = st;
     g_mutex_unlock(&r->mu);
-    server_event_async(r->srv, uuid, proto_event_state(uuid, st, reason));
+}
+
+void runner_set_state(runner *r, const char *uuid, catalog_state st, const char *reason)
+{
+    runstate_set(r->cat, &r->cl, r->srv, uuid, st, reason, note_state, r);
 }
 
 int runner_aborting(runner *r)

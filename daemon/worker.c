@@ -15,6 +15,7 @@
 #include "calib.h"
 #include "catlock.h"
 #include "recon_opts.h"
+#include "runstate.h"
 #include "cubefile.h"
 #include "pipeline/pipeline.h"
 #include "skyfig.h"
@@ -44,11 +45,6 @@ struct worker {
     char current[CATALOG_UUID_LEN + 1];
 };
 
-static void emit_state(worker *w, const char *uuid, catalog_state st, const char *reason)
-{
-    server_event_async(w->srv, uuid, proto_event_state(uuid, st, reason));
-}
-
 static int stopping(void *worker_arg)
 {
     worker *w = worker_arg;
@@ -58,19 +54,10 @@ static int stopping(void *worker_arg)
     return s;
 }
 
-/* Move the run to st (waiting out another process's lock, catlock.h) and
- * say so; a refusal is logged (it means another process changed the run,
- * which the daemon does not expect). */
+/* Move the run to st (runstate.h: waiting out another process's lock). */
 static void set_state(worker *w, const char *uuid, catalog_state st, const char *reason)
 {
-    catlock_state a = {uuid, st, reason};
-    char what[80];
-    snprintf(what, sizeof what, "run %s: %s", uuid, catalog_state_name(st));
-    if (catlock_write(w->cat, &w->cl, what, catlock_set_state, &a) != SL_OK) {
-        g_warning("run %s: %s", uuid, catalog_errmsg(w->cat));
-        return;
-    }
-    emit_state(w, uuid, st, reason);
+    runstate_set(w->cat, &w->cl, w->srv, uuid, st, reason, NULL, NULL);
 }
 
 /* DATA/recon/<uuid>-<method>[-N].fits, created empty (O_EXCL) so two jobs

@@ -34,7 +34,7 @@
 #define MAX_RECONNECTS 3
 #define RECONNECT_MS 3000
 
-typedef struct acq {
+struct acq {
     runner *r;
     const runner_spec *sp;
     camera_config cf;
@@ -53,7 +53,7 @@ typedef struct acq {
     framelog *fl;              /* the rows on disk (framelog.h), NULL once closed */
     char *fl_path;
     guint fl_logged;           /* rows already in it */
-} acq;
+};
 
 /* This run's camera counters: the handle's totals carry over from run to
  * run (and across reconnects), so subtract those at the start. */
@@ -232,9 +232,7 @@ static acq_end stream(acq *a, char *reason, size_t rlen)
     }
     while (a->stored < sp->frames) {
         if (runner_aborting(r)) {
-            g_mutex_lock(&r->mu);
-            snprintf(reason, rlen, "%s", r->abort_reason);
-            g_mutex_unlock(&r->mu);
+            runner_abort_reason(r, reason, rlen);
             return ACQ_ABORTED;
         }
         int rc = camera_pop(r->cam, POP_SLICE_MS, &fr);
@@ -362,11 +360,6 @@ static acq_end finish(acq *a, acq_end end, char *reason, size_t rlen)
         g_warning("run %s: %s", uuid, catalog_errmsg(r->cat));
     a->stored = on_disk;
     runner_note_progress(r, on_disk, a->failed, a->packets_missing);
-    if (end == ACQ_COMPLETE)
-        runner_set_state(r, uuid, CATALOG_STORED, NULL);
-    else
-        runner_set_state(r, uuid, end == ACQ_ABORTED ? CATALOG_ABORTED : CATALOG_FAILED,
-                         reason);
     return end;
 }
 
@@ -419,59 +412,72 @@ static double record_r0(acq *a)
     return NAN;
 }
 
-acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
-                    size_t rlen, double *r0_m)
+acq *acquire_open(runner *r, const runner_spec *sp, double pupil_m, char *reason,
+                  size_t rlen, acq_end *end)
 {
-    acq a = {.r = r, .sp = sp};
+    acq *a = g_new0(acq, 1);
+    a->r = r, a->sp = sp;
     sl_err e = {0};
-    acq_end end = ACQ_FAILED;
-    *r0_m = NAN;
-    if (camlink_ready(r, sp, &a.cf, &a.info, &e) != SL_OK) {
+    *end = ACQ_FAILED;
+    if (camlink_ready(r, sp, &a->cf, &a->info, &e) != SL_OK) {
         snprintf(reason, rlen, "%s", e.msg);
-        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
-        return ACQ_FAILED;
-    }
-    camera_stats_get(r->cam, &a.base);
-    if (runner_aborting(r)) {
-        g_mutex_lock(&r->mu);
-        snprintf(reason, rlen, "%s", r->abort_reason);
-        g_mutex_unlock(&r->mu);
-        runner_set_state(r, sp->uuid, CATALOG_ABORTED, reason);
-        return ACQ_ABORTED;
-    }
-    a.part = g_strdup_printf("%s/runs/%s.fits.part", r->cfg->data_dir, sp->uuid);
-    a.final = g_strdup_printf("%s/runs/%s.fits", r->cfg->data_dir, sp->uuid);
-    a.rows = g_array_sized_new(FALSE, FALSE, sizeof(cubefile_row), (guint)sp->frames);
-    a.pix = g_new(float, (size_t)a.cf.width * (size_t)a.cf.height);
-    if (seeing_new(&a.see, a.cf.width, a.cf.height, r->cfg->plate_scale_arcsec,
-                   r->cfg->wavelength_m, pupil_m, &e) != SL_OK) {
-        g_warning("run %s: no seeing estimate: %s", sp->uuid, e.msg);
-        a.see = NULL;
-    }
-    if (open_files(&a, &e) != SL_OK) {
-        snprintf(reason, rlen, "%s", e.msg);
-        cube_writer_free(a.w);
-        if (a.fl) {   /* no frame was taken: leave no file behind */
-            framelog_close(a.fl);
-            a.fl = NULL;
-            unlink(a.fl_path);
-        }
-        runner_set_state(r, sp->uuid, CATALOG_FAILED, reason);
         goto free_acq;
     }
-    a.t_flush = g_get_monotonic_time();
-    runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
-    progress_start(&a.pw, r->cfg->catalog, r->cfg->catalog_busy_timeout_ms, sp->uuid);
-    end = finish(&a, stream(&a, reason, rlen), reason, rlen);
-    if (end == ACQ_COMPLETE)
-        *r0_m = record_r0(&a);
+    camera_stats_get(r->cam, &a->base);
+    if (runner_aborting(r)) {
+        runner_abort_reason(r, reason, rlen);
+        *end = ACQ_ABORTED;
+        goto free_acq;
+    }
+    a->part = g_strdup_printf("%s/runs/%s.fits.part", r->cfg->data_dir, sp->uuid);
+    a->final = g_strdup_printf("%s/runs/%s.fits", r->cfg->data_dir, sp->uuid);
+    a->rows = g_array_sized_new(FALSE, FALSE, sizeof(cubefile_row), (guint)sp->frames);
+    a->pix = g_new(float, (size_t)a->cf.width * (size_t)a->cf.height);
+    if (seeing_new(&a->see, a->cf.width, a->cf.height, r->cfg->plate_scale_arcsec,
+                   r->cfg->wavelength_m, pupil_m, &e) != SL_OK) {
+        g_warning("run %s: no seeing estimate: %s", sp->uuid, e.msg);
+        a->see = NULL;
+    }
+    if (open_files(a, &e) != SL_OK) {
+        snprintf(reason, rlen, "%s", e.msg);
+        cube_writer_free(a->w);
+        a->w = NULL;
+        if (a->fl) {   /* no frame was taken: leave no file behind */
+            framelog_close(a->fl);
+            a->fl = NULL;
+            unlink(a->fl_path);
+        }
+        goto free_acq;
+    }
+    a->t_flush = g_get_monotonic_time();
+    return a;
 free_acq:
-    framelog_close(a.fl);
-    g_free(a.fl_path);
-    seeing_free(a.see);
-    g_free(a.pix);
-    g_array_free(a.rows, TRUE);
-    g_free(a.part);
-    g_free(a.final);
+    acquire_free(a);
+    return NULL;
+}
+
+acq_end acquire_stream(acq *a, char *reason, size_t rlen, double *r0_m)
+{
+    runner *r = a->r;
+    *r0_m = NAN;
+    progress_start(&a->pw, r->cfg->catalog, r->cfg->catalog_busy_timeout_ms, a->sp->uuid);
+    acq_end end = finish(a, stream(a, reason, rlen), reason, rlen);
+    if (end == ACQ_COMPLETE)
+        *r0_m = record_r0(a);
     return end;
+}
+
+void acquire_free(acq *a)
+{
+    if (!a)
+        return;
+    framelog_close(a->fl);
+    g_free(a->fl_path);
+    seeing_free(a->see);
+    g_free(a->pix);
+    if (a->rows)
+        g_array_free(a->rows, TRUE);
+    g_free(a->part);
+    g_free(a->final);
+    g_free(a);
 }

@@ -42,6 +42,13 @@ void runner_set_state(runner *r, const char *uuid, catalog_state st, const char 
     runstate_set(r->cat, &r->cl, r->srv, uuid, st, reason, note_state, r);
 }
 
+void runner_abort_reason(runner *r, char *buf, size_t n)
+{
+    g_mutex_lock(&r->mu);
+    snprintf(buf, n, "%s", r->abort_reason);
+    g_mutex_unlock(&r->mu);
+}
+
 int runner_aborting(runner *r)
 {
     g_mutex_lock(&r->mu);
@@ -217,9 +224,7 @@ static void do_run(runner *r, const runner_spec *sp)
         return;
     }
     if (runner_aborting(r)) {
-        g_mutex_lock(&r->mu);
-        snprintf(reason, sizeof reason, "%s", r->abort_reason);
-        g_mutex_unlock(&r->mu);
+        runner_abort_reason(r, reason, sizeof reason);
         runner_set_state(r, sp->uuid, CATALOG_ABORTED, reason);
         return;
     }
@@ -227,11 +232,22 @@ static void do_run(runner *r, const runner_spec *sp)
     catalog_mask_list(r->cat, pupil_match, &pf);
     if (!(pf.extent_m > 0))
         pf.extent_m = 1.1;   /* the built-in pupils' extent */
-    if (acquire_run(r, sp, pf.extent_m, reason, sizeof reason, &r0_m) == ACQ_COMPLETE) {
-        if (isfinite(r0_m))
-            g_message("run %s: r0 %.4f m (image motion)", sp->uuid, r0_m);
-        worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL, NULL);   /* defaults */
+    acq_end end;
+    acq *a = acquire_open(r, sp, pf.extent_m, reason, sizeof reason, &end);
+    if (a) {
+        runner_set_state(r, sp->uuid, CATALOG_ACQUIRING, NULL);
+        end = acquire_stream(a, reason, sizeof reason, &r0_m);
+        acquire_free(a);
     }
+    if (end != ACQ_COMPLETE) {
+        runner_set_state(r, sp->uuid, end == ACQ_ABORTED ? CATALOG_ABORTED : CATALOG_FAILED,
+                         reason);
+        return;
+    }
+    runner_set_state(r, sp->uuid, CATALOG_STORED, NULL);
+    if (isfinite(r0_m))
+        g_message("run %s: r0 %.4f m (image motion)", sp->uuid, r0_m);
+    worker_submit(r->wk, sp->uuid, sp->method, sp->projections, NULL, NULL);   /* defaults */
 }
 
 /* Answer the aborts that waited for the current run, with its end state. */

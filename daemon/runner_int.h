@@ -50,12 +50,22 @@ typedef enum acq_end {
     ACQ_FAILED
 } acq_end;
 
-/* One run's acquisition: camera configured, frames to the .part cube,
- * the cube finished on disk and catalogued.  On return the run is in its
- * final acquisition state in the catalogue (stored, failed or aborted)
- * and *r0_m holds the run's seeing (NaN when not measured). */
-acq_end acquire_run(runner *r, const runner_spec *sp, double pupil_m, char *reason,
-                    size_t reason_len, double *r0_m);
+/* One run's acquisition (acquire.c), in two steps that return outcomes;
+ * the runner makes the transitions (runstate.h): acquiring between them,
+ * then stored, aborted or failed.
+ * acquire_open: the camera ready and configured, the .part cube and its
+ * frame log created and catalogued; NULL with *end (failed, or aborted
+ * before the first frame) and the reason.
+ * acquire_stream: the frames to the cube, the cube finished on disk, its
+ * file and counts catalogued; the outcome, the reason, and *r0_m the
+ * run's seeing (NaN when not measured).  acquire_free(NULL) is a no-op. */
+typedef struct acq acq;
+acq *acquire_open(runner *r, const runner_spec *sp, double pupil_m, char *reason,
+                  size_t reason_len, acq_end *end);
+acq_end acquire_stream(acq *a, char *reason, size_t reason_len, double *r0_m);
+void acquire_free(acq *a);
+/* The reason a run is being aborted (runner_abort's), into buf. */
+void runner_abort_reason(runner *r, char *buf, size_t n);
 
 /* Thread-side helpers from runner.c.  runner_set_state records the state
  * (waiting out another process's lock on the catalogue, catlock.h), then

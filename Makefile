@@ -417,6 +417,7 @@ FUZZ_CONFIG_SRC := daemon/config.c daemon/config_defaults.c daemon/webconf.c com
 # The control socket: server, dispatcher, catalogue and the stage driver
 # (`devices`); the runner and the worker are stand-ins in the harness.
 FUZZ_DISPATCH_SRC := daemon/dispatch.c daemon/query.c daemon/proto.c daemon/server.c \
+                     daemon/runstate.c daemon/catlock.c daemon/reserve.c \
                      daemon/config.c daemon/config_defaults.c daemon/webconf.c daemon/recon_opts.c recon/pipeline/pipeline_names.c \
                      recon/pipeline/pipeline_optset.c recon/pipeline/pipeline_check.c \
                      $(SCHEMA_SRC) $(FUZZ_STAGE_SRC)

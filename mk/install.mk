@@ -1,7 +1,8 @@
 # mk/install.mk - make man, install and uninstall (included by Makefile).
 #
 # GNU conventions: PREFIX (default /usr/local) and DESTDIR (staging root,
-# empty for a real install).  specklab goes to PREFIX/bin, specklabd to
+# empty for a real install).  specklab (and specklab-mpi when the build
+# has MPI) goes to PREFIX/bin, specklabd to
 # PREFIX/sbin (a system daemon, section 8), the man pages to
 # PREFIX/share/man, the unit to PREFIX/lib/systemd/system, PROTOCOL.md and
 # the example configuration to PREFIX/share/doc/specklab.  The system
@@ -37,12 +38,13 @@ $(MAN_PAGES): $(BIN)/specklab $(BIN)/specklabd man/specklab.h2m man/specklabd.h2
 	@command -v help2man >/dev/null || scripts/install-deps
 	scripts/man-pages $(BIN) $(MAN_OUT)
 
-install: $(BIN)/specklab $(BIN)/specklabd $(MAN_PAGES)
+install: $(BIN)/specklab $(BIN)/specklabd $(MAN_PAGES) $(MPI_BIN)
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(SBINDIR) $(DESTDIR)$(MANDIR)/man1 \
 	    $(DESTDIR)$(MANDIR)/man5 $(DESTDIR)$(MANDIR)/man8 $(DESTDIR)$(DOCDIR) \
 	    $(DESTDIR)$(UNITDIR) $(DESTDIR)$(SYSCONFDIR)/specklab
 	install -m 0755 $(BIN)/specklab $(DESTDIR)$(BINDIR)/specklab
 	install -m 0755 $(BIN)/specklabd $(DESTDIR)$(SBINDIR)/specklabd
+	$(if $(MPI_BIN),install -m 0755 $(MPI_BIN) $(DESTDIR)$(BINDIR)/specklab-mpi)
 	install -m 0644 $(MAN_OUT)/specklab.1 $(DESTDIR)$(MANDIR)/man1/specklab.1
 	install -m 0644 $(MAN_OUT)/specklabd.8 $(DESTDIR)$(MANDIR)/man8/specklabd.8
 	install -m 0644 $(MAN_OUT)/specklabd.conf.5 $(DESTDIR)$(MANDIR)/man5/specklabd.conf.5
@@ -59,7 +61,7 @@ install: $(BIN)/specklab $(BIN)/specklabd $(MAN_PAGES)
 
 # The configuration stays (it may hold the lab's edits), like the data.
 uninstall:
-	rm -f $(DESTDIR)$(BINDIR)/specklab $(DESTDIR)$(SBINDIR)/specklabd \
+	rm -f $(DESTDIR)$(BINDIR)/specklab $(DESTDIR)$(BINDIR)/specklab-mpi $(DESTDIR)$(SBINDIR)/specklabd \
 	    $(DESTDIR)$(MANDIR)/man1/specklab.1 $(DESTDIR)$(MANDIR)/man8/specklabd.8 \
 	    $(DESTDIR)$(MANDIR)/man5/specklabd.conf.5 $(DESTDIR)$(UNITDIR)/specklabd.service \
 	    $(DESTDIR)$(DOCDIR)/PROTOCOL.md $(DESTDIR)$(DOCDIR)/specklabd.conf.example

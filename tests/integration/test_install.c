@@ -1,6 +1,7 @@
 /* test_install.c - make install / uninstall into a staging root, as a
- * packager runs them: the programs run and say their version, the three
- * man pages render, the unit passes systemd-analyze verify, an edited
+ * packager runs them: the programs are installed (specklab-mpi too when
+ * the build has MPI), specklab and specklabd run and say their version,
+ * the three man pages render, the unit passes systemd-analyze verify, an edited
  * configuration survives a reinstall and an uninstall, and uninstall
  * removes everything else.  make runs from the source tree (the tests'
  * working directory) on the programs already built. */
@@ -91,7 +92,14 @@ static int exists(const char *root, const char *rel)
     return ok;
 }
 
+#ifndef SL_HAVE_MPI
+#define SL_HAVE_MPI 0
+#endif
+
 static const char *const installed[] = {
+#if SL_HAVE_MPI
+    "/usr/bin/specklab-mpi",   /* with MPI; before the configuration, kept last */
+#endif
     "/usr/bin/specklab", "/usr/sbin/specklabd", "/usr/share/man/man1/specklab.1",
     "/usr/share/man/man8/specklabd.8", "/usr/share/man/man5/specklabd.conf.5",
     "/usr/lib/systemd/system/specklabd.service", "/usr/share/doc/specklab/PROTOCOL.md",

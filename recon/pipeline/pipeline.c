@@ -129,9 +129,8 @@ static void direct_opts(const stream *s, const pipeline_opts *o, double g,
                         bispec_opts *bo)
 {
     bispec_opts_defaults(bo);
-    int side = s->w < s->h ? s->w : s->h;
-    bo->r2_px = o->r2_px > 0 ? o->r2_px : (int)lround(0.14 * side);
-    bo->r2_px = bo->r2_px > BISPEC_R2_MAX ? BISPEC_R2_MAX : bo->r2_px < 1 ? 1 : bo->r2_px;
+    if (o->r2_px > 0)   /* checked against the frame; the default: direct_bispec */
+        bo->r2_px = o->r2_px;
     bo->support = support;
     bo->window = o->window;
     bo->tukey_alpha = o->tukey_alpha;

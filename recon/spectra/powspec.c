@@ -274,34 +274,32 @@ static size_t floor_stats(const double *ps, int w, int h, double rho0,
     return m;
 }
 
-/* The measured floor per frame; *speckle: speckle reaches the floor's
- * region (below). */
+/* The measured floor per frame (BIAS_FLOOR); *speckle: speckle reaches
+ * the floor's region, *outer: the outer part's level alone (0: none). */
 static double floor_level(const powspec *p, int *speckle, double *outer)
 {
-    {
-        /* The floor_stats region, read through the half plane, in two
-         * parts: up to and beyond 1.2 x floor_rho.  White noise is flat;
-         * when the inner part stands 10 % above the outer one, speckle
-         * reaches the corners (sampling coarser than Nyquist) and only
-         * the outer part, the least of it, stands for the floor. */
-        double s[2] = {0, 0};
-        size_t m[2] = {0, 0};
-        for (int j = 0; j < p->h; j++)
-            for (int i = 0; i < p->w; i++) {
-                double r = rho_of(i, j, p->w, p->h);
-                if (r > p->o.floor_rho) {
-                    int mir, k = r > 1.2 * p->o.floor_rho;
-                    s[k] += p->ps[half_index(p, i, j, &mir)];
-                    m[k]++;
-                }
+    /* The floor_stats region, read through the half plane, in two
+     * parts: up to and beyond 1.2 x floor_rho.  White noise is flat;
+     * when the inner part stands 10 % above the outer one, speckle
+     * reaches the corners (sampling coarser than Nyquist) and only
+     * the outer part, the least of it, stands for the floor. */
+    double s[2] = {0, 0};
+    size_t m[2] = {0, 0};
+    for (int j = 0; j < p->h; j++)
+        for (int i = 0; i < p->w; i++) {
+            double r = rho_of(i, j, p->w, p->h);
+            if (r > p->o.floor_rho) {
+                int mir, k = r > 1.2 * p->o.floor_rho;
+                s[k] += p->ps[half_index(p, i, j, &mir)];
+                m[k]++;
             }
-        double in = m[0] ? s[0] / m[0] : 0, out = m[1] ? s[1] / m[1] : in;
-        *speckle = m[1] && in > 1.1 * out;
-        *outer = m[1] ? out / p->n : 0;
-        if (*speckle)
-            return out / p->n;
-        return m[0] + m[1] ? (s[0] + s[1]) / (m[0] + m[1]) / p->n : 0.0;
-    }
+        }
+    double in = m[0] ? s[0] / m[0] : 0, out = m[1] ? s[1] / m[1] : in;
+    *speckle = m[1] && in > 1.1 * out;
+    *outer = m[1] ? out / p->n : 0;
+    if (*speckle)
+        return out / p->n;
+    return m[0] + m[1] ? (s[0] + s[1]) / (m[0] + m[1]) / p->n : 0.0;
 }
 
 double powspec_bias(const powspec *p)
@@ -328,11 +326,10 @@ int powspec_floor_gain(const powspec *p, double white_adu, double *adu_per_photo
     floor_level(p, &speckle, &fl);
     double white = white_adu * white_adu * p->w2, shot = fl - white;
     /* The outer part of the floor's region only: speckle a few per cent
-     * above the floor near the cut-off passes the bias's 10 % test but
-     * reads as photons (a 17-hole mask at Nyquist: the gain 3.5 % low).
-     * Refused: speckle over the region, no outer part, and a floor the
-     * white noise owns (the photons' share then carries the white
-     * noise's error many times over). */
+     * above the floor near the cut-off passes the bias's 10 % test, and
+     * there it would read as photons.  Refused: speckle over the region,
+     * no outer part, and a floor the white noise owns (the photons' share
+     * then carries the white noise's error many times over). */
     if (speckle || !(fl > 0) || !(shot > 0.2 * fl))
         return SL_EDATA;
     *adu_per_photon = shot / (p->w2flux / p->n);

@@ -195,8 +195,8 @@ TEST(existing_markdown_needs_overwrite)
 
 /* `bench --scaling`: for each method a row per thread count (1 and 2 at
  * least) whose stages account for its wall time (the stages partition
- * pipeline_run: their sum within 5 % + 5 ms of the total, never above
- * it by more than the clock's reading), speedup 1.00 at one thread, and
+ * pipeline_run: their sum within 5 % + 5 ms of the total, never above it
+ * by more than the printed rounding), speedup 1.00 at one thread, and
  * the parallel-fraction line; a bad method is named. */
 TEST(scaling_stages_account_for_the_time)
 {
@@ -227,7 +227,8 @@ TEST(scaling_stages_account_for_the_time)
             double sum = 0;
             for (int k = 1; k <= 7; k++)
                 sum += v[k];
-            CHECK(sum <= v[0] + 1e-3 && sum >= 0.95 * v[0] - 0.005,
+            /* each of the 8 numbers printed to 1 ms: 4 ms of rounding */
+            CHECK(sum <= v[0] + 0.004 && sum >= 0.95 * v[0] - 0.005,
                   "%s at %d threads: stages sum %.4f s of %.4f s", methods[m], th, sum, v[0]);
             CHECK(th != 1 || fabs(v[8] - 1) < 1e-9, "%s: speedup %.2f at one thread",
                   methods[m], v[8]);

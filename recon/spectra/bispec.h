@@ -21,12 +21,13 @@
  *
  * Memory.  With T stored triples and F = |S n H| frequencies:
  *   bytes = T * (2 + A * (1 + s/2))
- *         + F * (214 + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (nthreads + 1)
+ *         + F * (90 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (nthreads + 1)
  *         + 4 * (w + 2 R2 + 1) * (h + 2 R2 + 1)          [even w, h]
  *         + w*h * (12 + 4 * win + 4 * ph * win)
  *         + h * (w/2 + 1) * (24 + 8 * ph * win)
  * A = 16 (double accumulators) or 8 (acc_float), s = 1 for SNR weighting,
- * ph = 1 with photon-bias correction, win = 1 with a window.  For a full
+ * ph = 1 with photon-bias correction, win = 1 with a window, kb the
+ * frames per batch (bispec_batch).  For a full
  * disk of radius r_c
  *   T ~ (pi^2/4) r_c^2 R2^2 - (pi/3) r_c R2^3 - 2 R2^4   (R2 <= r_c/2)
  * (half-plane targets, pi r_c^2/2, times the half disk of u2 with
@@ -41,12 +42,14 @@
  *     100 frames 0.6-1.2 s;  7-hole: T 1.71 M, 32 MB, 0.1-0.3 s.
  *
  * Streaming.  bispec_add copies the frame's support values into a batch of
- * BISPEC_BATCH frames and runs the triple loop once per batch, so each
- * accumulator (16-24 bytes per triple) is read and written once per batch
- * rather than once per frame; what remains is bound by cache latency on
- * the u1 leg.  Results flush the partial batch first.  The triple loop
- * runs on opts.nthreads threads (pthreads, created per batch, each on a
- * contiguous range of targets with equal triple counts).
+ * kb frames (bispec_batch: BISPEC_BATCH_MAX, halved while the batch
+ * buffer would pass BISPEC_BATCH_BYTES) and runs the triple loop once per
+ * batch, so each accumulator is read and written once per batch rather
+ * than once per frame.  The loop visits the targets in small tiles, so the
+ * u1 legs they share stay in L2, and runs on opts.nthreads threads
+ * (created per batch, each on a range of targets with equal triple
+ * counts; each triple is summed by one thread, so the bits do not depend
+ * on the thread count).  Results flush the partial batch first.
  *
  * Phase recovery and image: see phasor.h and bispec_image.
  */
@@ -61,7 +64,11 @@
 #include "powspec.h"
 #include "status.h"
 
-#define BISPEC_BATCH 8
+/* Frames per batch: 64, 32 or 16, the largest whose batch buffer (2F
+ * legs x 2 x batch floats) fits BISPEC_BATCH_BYTES, so the legs a tile of
+ * targets reads stay in a 2 MB L2. */
+#define BISPEC_BATCH_MAX 64
+#define BISPEC_BATCH_BYTES (32u << 20)
 #define BISPEC_R2_MAX 144 /* u2 offsets must fit a uint16 */
 
 typedef struct bispec_opts {
@@ -112,6 +119,7 @@ size_t bispec_ntriples(const bispec *b);
 int bispec_nfreq(const bispec *b);       /* |S n H|, DC included */
 size_t bispec_ndisk(const bispec *b);    /* stored u2 offsets (nd) */
 size_t bispec_memory_bytes(const bispec *b);
+int bispec_batch(const bispec *b);       /* frames per batch (16..64) */
 /* Wall seconds spent in the triple kernel so far (the batches flushed). */
 double bispec_kernel_s(const bispec *b);
 

@@ -7,10 +7,13 @@
 #include <complex.h>
 #include <fftw3.h>
 
+#include "base/tpool.h"
 #include "bispec.h"
 
-#define K BISPEC_BATCH
-typedef float vk __attribute__((vector_size(K * sizeof(float))));
+/* The kernel's vector: BISPEC_LANES frames of one leg (64 bytes, one
+ * AVX-512 register, two AVX2 ones); a batch is kb / BISPEC_LANES of them. */
+#define BISPEC_LANES 16
+typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));
 
 struct bispec {
     int w, h, wc;
@@ -25,12 +28,15 @@ struct bispec {
     int32_t *doff, *dleg;    /* the u2 disk */
     int64_t *tstart;
     uint16_t *tk;
+    int32_t *order;          /* targets in the kernel's (tiled) order */
     int64_t nt;
     int nthr;
-    int32_t *trange;         /* target ranges of equal triple counts */
+    tpool *pool;             /* nthr threads: graph, kernel, phases */
+    int32_t *trange;         /* ranges of order[] of equal triple counts */
     double *accd, *acc2d;    /* 2 per triple; 1 per triple */
     float *accf, *acc2f;
-    float *fb;               /* 2F legs x (K re + K im) */
+    float *fb;               /* 2F legs x (kb re + kb im) */
+    int kb;                  /* frames per batch (bispec_batch) */
     int nb;                  /* frames in the current batch */
     double kernel_s;         /* wall time in bispec_flush's triple loop */
     int n;                   /* frames added */
@@ -58,7 +64,15 @@ static inline size_t bispec_fidx(int p, int q, int w, int h)
     return (size_t)((q % h + h) % h) * w + (size_t)((p % w + w) % w);
 }
 
-/* Run the triple kernel over the batch of buffered frames (bispec.c). */
+/* Zeroed, 64-byte aligned, counted in b->mem (bispec.c). */
+void *bispec_alloc(bispec *b, size_t bytes);
+
+/* Frequencies, lut, disk, triples, target order and thread ranges
+ * (bispec_graph.c).  SL_ENOMEM, or SL_EDATA with the message in err. */
+int bispec_build_graph(bispec *b, sl_err *err);
+
+/* Run the triple kernel over the batch of buffered frames
+ * (bispec_kernel.c). */
 void bispec_flush(bispec *b);
 
 #endif

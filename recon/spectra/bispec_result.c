@@ -15,7 +15,7 @@ static void graph_view(const bispec *b, phasor_graph *g)
         .nfreq = b->nf, .tstart = b->tstart, .tk = b->tk, .ubase = b->ubase,
         .doff = b->doff, .dleg = b->dleg, .lut = b->lut, .seed = b->seed,
         .accd = b->accd, .accf = b->accf, .acc2d = b->acc2d,
-        .acc2f = b->acc2f, .nframes = n, .weight = b->o.weight,
+        .acc2f = b->acc2f, .nframes = n, .pool = b->pool, .weight = b->o.weight,
         .refine_weight = b->o.refine_weight,
         .xsum = ph ? b->xsum : NULL, .xscale = ph ? gain / n : 0,
         .bconst = ph ? 2.0 * gain * gain * b->w3sum / n + 3.0 * gain * b->rw3 : 0};

@@ -6,7 +6,7 @@
  * With PHASOR_WEIGHT_MOD the weight |B_t| cancels the normalisation and
  * the proposal is just E(l1) E(l2) conj(B_t).
  */
-#include "phasor.h"
+#include "phasor_int.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -63,166 +63,6 @@ void phasor_triple(const phasor_graph *g, int j, int64_t t, int *l1, int *l2,
     *wt = w;
 }
 
-/* Proposal for E(u_j) from one triple: w * E1 E2 conj(B)/|B|. */
-static void propose(const double *E, int l1, int l2, double bre, double bim,
-                    double w, double *zr, double *zi)
-{
-    double mod = sqrt(bre * bre + bim * bim);
-    if (!(w > 0) || !(mod > 0)) {
-        *zr = *zi = 0;
-        return;
-    }
-    double e1r = E[2 * l1], e1i = E[2 * l1 + 1];
-    double e2r = E[2 * l2], e2i = E[2 * l2 + 1];
-    double pr = e1r * e2r - e1i * e2i, pi = e1r * e2i + e1i * e2r;
-    double s = w / mod;
-    *zr = s * (pr * bre + pi * bim);
-    *zi = s * (pi * bre - pr * bim);
-}
-
-static void set_phasor(double *E, int n, int j, double re, double im)
-{
-    E[2 * j] = re;
-    E[2 * j + 1] = im;
-    E[2 * (n + j)] = re;
-    E[2 * (n + j) + 1] = -im;
-}
-
-/* Add a proposal for leg l (conjugated onto its half-plane frequency). */
-static void add_leg(double *Z, int n, int l, double zr, double zi)
-{
-    if (l >= n) {
-        l -= n;
-        zi = -zi;
-    }
-    Z[2 * l] += zr;
-    Z[2 * l + 1] += zi;
-}
-
-/* One strong triple of the refinement: target, legs, unit bispectrum
- * and weight. */
-typedef struct strong {
-    int32_t j, l1, l2;
-    float br, bi, w;
-} strong;
-
-/* The strong triples: of each target's triples with known legs, those
- * of weight >= PHASOR_REFINE_REL x that target's largest, so every
- * frequency keeps its best constraints (a threshold on the global
- * largest weight kept only the few triples near the origin, where |B| is
- * larger by orders of magnitude).  Two passes over each target's
- * triples; NULL when out of memory. */
-static strong *strong_triples(const phasor_graph *g, const unsigned char *known,
-                              int64_t *n_out)
-{
-    int n = g->nfreq;
-    int64_t cap = 0, ns = 0;
-    strong *s = NULL;
-    for (int j = 1; j < n; j++) {
-        if (!known[j])
-            continue;
-        double wmax = 0;
-        for (int pass = 0; pass < 2; pass++)
-            for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-                int l1, l2;
-                double br, bi, w;
-                phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
-                double mod = sqrt(br * br + bi * bi);
-                if (!known[l1 % n] || !known[l2 % n] || !(w > 0) || !(mod > 0))
-                    continue;
-                if (pass == 0) {
-                    wmax = fmax(wmax, w);
-                    continue;
-                }
-                if (w < PHASOR_REFINE_REL * wmax)
-                    continue;
-                if (ns == cap) {
-                    cap = cap ? 2 * cap : 65536;
-                    strong *p = realloc(s, sizeof *p * (size_t)cap);
-                    if (!p) {
-                        free(s);
-                        return NULL;
-                    }
-                    s = p;
-                }
-                s[ns++] = (strong){j, l1, l2, (float)(br / mod), (float)(bi / mod), (float)w};
-            }
-    }
-    *n_out = ns;
-    return s;
-}
-
-/* Weighted closure misfit sum w (1 - Re(E_j conj(E1 E2 conj b))). */
-static double misfit(const strong *s, int64_t ns, const double *E)
-{
-    double c = 0;
-    for (int64_t t = 0; t < ns; t++) {
-        double pr, pi;
-        propose(E, s[t].l1, s[t].l2, s[t].br, s[t].bi, s[t].w, &pr, &pi);
-        c += s[t].w - (pr * E[2 * s[t].j] + pi * E[2 * s[t].j + 1]);
-    }
-    return c;
-}
-
-/* Least-squares refinement, Jacobi on phasors: from E(u_j) ~ E1 E2
- * conj(b) follow E1 ~ E(u_j) conj(E2) b and E2 ~ E(u_j) conj(E1) b
- * (b = B/|B|); each frequency takes the phasor of its proposals' sum.
- * Undamped it converged 2.5x faster than with the current phasor added
- * (c 0.954 after 20 passes against 0.932 on a piston-phase six-star);
- * the misfit is watched and a pass that raises it is undone, which ends
- * the refinement, as does one that lowers it by less than 1e-4.  Only
- * the strong triples (PHASOR_REFINE_REL) take part: at 0.01 about a
- * quarter of them, and with them the piston-phase six-star reaches c
- * 0.952 in 30 passes where 0.1 (6 %) left it at 0.850. */
-static void refine(const phasor_graph *g, int iters, double *E, double *Z,
-                   const unsigned char *known)
-{
-    int n = g->nfreq;
-    int64_t ns = 0;
-    phasor_graph gr = *g;
-    gr.weight = g->refine_weight;
-    strong *s = strong_triples(&gr, known, &ns);
-    double *keep = malloc(sizeof *keep * 4 * (size_t)n);
-    if (!s || !keep)
-        goto free_all;
-    double cost = misfit(s, ns, E);
-    for (int it = 0; it < iters; it++) {
-        memcpy(keep, E, sizeof *keep * 4 * (size_t)n);
-        memset(Z, 0, sizeof *Z * 2 * (size_t)n);
-        for (int64_t t = 0; t < ns; t++) {
-            const strong *q = &s[t];
-            double pr, pi, ur = q->w * q->br, ui = q->w * q->bi;
-            double ejr = E[2 * q->j], eji = E[2 * q->j + 1];
-            propose(E, q->l1, q->l2, q->br, q->bi, q->w, &pr, &pi);
-            Z[2 * q->j] += pr;
-            Z[2 * q->j + 1] += pi;
-            for (int side = 0; side < 2; side++) {
-                int lo = side ? q->l1 : q->l2, lt = side ? q->l2 : q->l1;
-                double cr = E[2 * lo], ci = -E[2 * lo + 1];
-                double xr = ejr * cr - eji * ci, xi = ejr * ci + eji * cr;
-                add_leg(Z, n, lt, xr * ur - xi * ui, xr * ui + xi * ur);
-            }
-        }
-        for (int j = 1; j < n; j++) {
-            double m = hypot(Z[2 * j], Z[2 * j + 1]);
-            if (known[j] && !g->seed[j] && m > 0)
-                set_phasor(E, n, j, Z[2 * j] / m, Z[2 * j + 1] / m);
-        }
-        double c = misfit(s, ns, E);
-        if (!(c < cost)) {
-            memcpy(E, keep, sizeof *keep * 4 * (size_t)n);
-            break;
-        }
-        int small = cost - c < 1e-3 * cost;
-        cost = c;
-        if (small)
-            break;
-    }
-free_all:
-    free(s);
-    free(keep);
-}
-
 int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,
                  unsigned char *known, double *misfit_out)
 {
@@ -233,7 +73,7 @@ int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,
     double *Z = work + 4 * (size_t)n; /* 2n: proposal sums */
     memset(known, 0, (size_t)n);
     for (int j = 0; j < n; j++)
-        set_phasor(E, n, j, 1.0, 0.0);
+        phasor_set(E, n, j, 1.0, 0.0);
     known[0] = 1;
 
     /* The recursion: legs always have lower rank than the target.  Its
@@ -241,40 +81,16 @@ int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,
      * (so that one threshold serves them all): with zm the |B|-weighted
      * sum of the unit proposals, sum_t |B_t| (1 - cos(res_t)) = sum_t
      * |B_t| - Re(conj(E_j) zm). */
-    double wsum = 0, miss = 0;
-    for (int j = 1; j < n; j++) {
-        if (g->seed[j]) {
-            known[j] = 1;
-            continue;
-        }
-        double zr = 0, zi = 0, mr = 0, mi = 0, ms = 0;
-        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-            int l1, l2;
-            double br, bi, w, pr, pi;
-            phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
-            if (!known[l1 % n] || !known[l2 % n] || !(w > 0))
-                continue;
-            propose(E, l1, l2, br, bi, w, &pr, &pi);
-            zr += pr;
-            zi += pi;
-            double mod = sqrt(br * br + bi * bi);
-            mr += pr * mod / w, mi += pi * mod / w, ms += mod;
-        }
-        double m = hypot(zr, zi);
-        if (m > 0) {
-            set_phasor(E, n, j, zr / m, zi / m);
-            known[j] = 1;
-            wsum += ms;
-            miss += ms - (mr * zr + mi * zi) / m;
-        }
-    }
-    double misfit_rel = wsum > 0 ? miss / wsum : 0;
+    double misfit_rel = 0;
+    int rc = phasor_recur(g, E, known, &misfit_rel);
+    if (rc != SL_OK)
+        return rc;
     if (misfit_out)
         *misfit_out = misfit_rel;
     if (iters < 0)
         iters = misfit_rel > PHASOR_AUTO_MISFIT ? PHASOR_AUTO_ITERS : 0;
     if (iters > 0)
-        refine(g, iters, E, Z, known);
+        phasor_refine(g, iters, E, Z, known);
     for (int j = 0; j < n; j++)
         phi[j] = known[j] ? atan2(E[2 * j + 1], E[2 * j]) : 0.0;
     return SL_OK;

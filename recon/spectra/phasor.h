@@ -56,6 +56,7 @@ typedef struct phasor_graph {
      * bispec_opts.read_noise_adu). */
     const double *xsum;
     double xscale, bconst;
+    struct tpool *pool;        /* phasor_solve's threads (NULL: this one) */
     int weight;                /* PHASOR_WEIGHT_* of the recursion */
     int refine_weight;         /* PHASOR_WEIGHT_* of the refinement: SNR
                                 * weights are the inverse phase errors a
@@ -87,9 +88,13 @@ size_t phasor_work_doubles(int nfreq);
  * triple proposes a phasor for each of its three legs from the other
  * two, phi_j = arg of the sum of the proposals, seeds held; a round that
  * does not lower the weighted closure misfit is undone and ends it, as
- * does one that lowers it by less than 1e-4.  Cost: the recursion one
+ * does one that lowers it by less than 1e-3 of itself.  Cost: the recursion one
  * pass over the triples; refining two more to list them, then
- * O(strong triples) per round (~0.07 s per round at 200^2, R2 = 28). */
+ * O(strong triples) per round (~0.07 s per round at 200^2, R2 = 28).
+ * Threads (pool): the recursion prepares its next block of triples on
+ * the workers while the caller walks the current one (phasor_recur.c);
+ * the refinement sums fixed chunks (phasor_refine.c).  The phases do not
+ * depend on the thread count. */
 #define PHASOR_REFINE_REL 0.01
 #define PHASOR_AUTO_MISFIT 0.05
 #define PHASOR_AUTO_ITERS 40

@@ -664,7 +664,8 @@ TEST(memory_formula)
         double T = (double)bispec_ntriples(b), F = bispec_nfreq(b);
         int A = o.acc_float ? 8 : 16, snr = (v & 2) != 0, ph = (v & 4) != 0,
             win = (v & 8) != 0;
-        double want = T * (2 + A * (1 + snr / 2.0)) + F * (214 + 16 * ph) +
+        double want = T * (2 + A * (1 + snr / 2.0)) +
+                      F * (90 + 16 * bispec_batch(b) + 16 * ph) +
                       8 + 8.0 * (2 * R2 + 1) * (2 * R2 + 1) + 4 * (o.nthreads + 1) +
                       4.0 * (w + 2 * R2 + 1) * (h + 2 * R2 + 1) +
                       (double)w * h * (12 + 4 * win + 4 * ph * win) +

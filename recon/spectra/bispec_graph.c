@@ -1,0 +1,239 @@
+/* bispec_graph.c - the triple graph of bispec.h: the support's
+ * frequencies in visiting rank, the lookup table, the u2 disk, the stored
+ * triples per target and the kernel's target order.
+ *
+ * Layout.  The F half-plane support frequencies are sorted by visiting
+ * rank; legs 0..F-1 are +u_j, legs F..2F-1 are -u_j.  A dense lookup
+ * table over |p| <= w/2 + R2, |q| <= h/2 + R2 maps a frequency to its leg
+ * (-1 outside S), so u1 = u - u2 is lut[ubase[j] - doff[k]] with no
+ * bounds test.  A triple stores only k, the u2 disk entry (uint16).
+ *
+ * Cost.  Listing the triples tests every (target, disk entry) pair, F nd
+ * of them (3.8e7 at 200^2, R2 = 28), twice (count, then store): it runs
+ * on the handle's threads.  Only which targets are reachable depends on
+ * the visiting order; that is settled first, serially, stopping at each
+ * target's first usable triple (a few tests each).
+ */
+#include "bispec_int.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct hfreq {
+    int p, q, r2;
+} hfreq;
+
+static int cmp_hfreq(const void *x, const void *y)
+{
+    const hfreq *a = x, *b = y;
+    if (a->r2 != b->r2)
+        return (a->r2 > b->r2) - (a->r2 < b->r2);
+    if (a->q != b->q)
+        return (a->q > b->q) - (a->q < b->q);
+    return (a->p > b->p) - (a->p < b->p);
+}
+
+/* The support's half-plane frequencies in rank order, the lut, the disk
+ * and the seeds. */
+static int build_freqs(bispec *b)
+{
+    int w = b->w, h = b->h, r2 = b->o.r2_px;
+    const unsigned char *m = b->o.support;
+    int pmax = (w - 1) / 2, qmax = (h - 1) / 2; /* no Nyquist */
+    double rc = b->o.rcut_px;
+    hfreq *hf = malloc((size_t)(pmax + 1) * (2 * qmax + 1) * sizeof *hf);
+    if (!hf)
+        return SL_ENOMEM;
+    int nf = 0;
+    for (int q = -qmax; q <= qmax; q++)
+        for (int p = 0; p <= pmax; p++) {
+            if (p == 0 && q < 0)
+                continue;
+            int in = !m || m[bispec_fidx(p, q, w, h)] || m[bispec_fidx(-p, -q, w, h)];
+            if (rc > 0 && hypot(p, q) > rc)
+                in = 0;
+            if (in || (p == 0 && q == 0))
+                hf[nf++] = (hfreq){p, q, p * p + q * q};
+        }
+    qsort(hf, (size_t)nf, sizeof *hf, cmp_hfreq);
+    b->nf = nf;
+    b->pm = w / 2 + r2;
+    b->qm = h / 2 + r2;
+    b->lw = 2 * b->pm + 1;
+    b->lh = 2 * b->qm + 1;
+    b->fp = bispec_alloc(b, (size_t)nf * sizeof *b->fp);
+    b->fq = bispec_alloc(b, (size_t)nf * sizeof *b->fq);
+    b->ubase = bispec_alloc(b, (size_t)nf * sizeof *b->ubase);
+    b->seed = bispec_alloc(b, (size_t)nf);
+    b->lut = bispec_alloc(b, (size_t)b->lw * b->lh * sizeof *b->lut);
+    if (!b->fp || !b->fq || !b->ubase || !b->seed || !b->lut) {
+        free(hf);
+        return SL_ENOMEM;
+    }
+    for (size_t i = 0; i < (size_t)b->lw * b->lh; i++)
+        b->lut[i] = -1;
+    for (int j = 0; j < nf; j++) {
+        int p = hf[j].p, q = hf[j].q;
+        b->fp[j] = p;
+        b->fq[j] = q;
+        b->ubase[j] = (q + b->qm) * b->lw + (p + b->pm);
+        b->lut[b->ubase[j]] = j;
+        if (j > 0)
+            b->lut[(-q + b->qm) * b->lw + (-p + b->pm)] = nf + j;
+        b->seed[j] = (p == 1 && q == 0) || (p == 0 && q == 1);
+    }
+    free(hf);
+    /* The u2 disk: offsets with 0 < |u2| <= R2 that are in S (room for
+     * the whole (2 R2 + 1)^2 box: at most 0.5 MB, and one pass). */
+    size_t box = (size_t)(2 * r2 + 1) * (2 * r2 + 1);
+    b->doff = bispec_alloc(b, box * sizeof *b->doff);
+    b->dleg = bispec_alloc(b, box * sizeof *b->dleg);
+    if (!b->doff || !b->dleg)
+        return SL_ENOMEM;
+    b->nd = 0;
+    for (int dq = -r2; dq <= r2; dq++)
+        for (int dp = -r2; dp <= r2; dp++) {
+            int leg = b->lut[(dq + b->qm) * b->lw + dp + b->pm];
+            if (dp * dp + dq * dq <= r2 * r2 && leg > 0) {
+                b->doff[b->nd] = dq * b->lw + dp;
+                b->dleg[b->nd++] = leg;
+            }
+        }
+    return SL_OK;
+}
+
+/* Is disk entry k a stored triple of target j (legs of lower rank,
+ * u2 the shortest, both reachable)?  Its u1 leg in *l1_out. */
+static inline int usable(const bispec *b, int j, size_t k, const unsigned char *reach)
+{
+    int nf = b->nf, l2 = b->dleg[k], h2 = l2 < nf ? l2 : l2 - nf;
+    if (h2 >= j || !reach[h2])
+        return 0;
+    int l1 = b->lut[b->ubase[j] - b->doff[k]];
+    if (l1 < 0)
+        return 0;
+    int h1 = l1 < nf ? l1 : l1 - nf;
+    return h1 < j && h1 >= h2 && (h1 != h2 || l1 == l2) && reach[h1];
+}
+
+/* reach[j]: the recursion can reach u_j from DC and the seeds (some
+ * triple of j has reachable legs).  Serial: it follows the rank order. */
+static void scan_reach(const bispec *b, unsigned char *reach)
+{
+    memset(reach, 0, (size_t)b->nf);
+    for (int j = 0; j < b->nf; j++) {
+        if (j == 0 || b->seed[j]) {
+            reach[j] = 1;
+            continue;
+        }
+        for (size_t k = 0; k < b->nd && !reach[j]; k++)
+            reach[j] = (unsigned char)usable(b, j, k, reach);
+    }
+}
+
+/* Targets are dealt to threads in blocks of SCAN_BLOCK, round robin: the
+ * triple count grows with |u|, so contiguous ranges would not balance. */
+#define SCAN_BLOCK 64
+typedef struct scan_job {
+    bispec *b;
+    const unsigned char *reach;
+    int store;
+} scan_job;
+
+/* tpool job: count (store 0: into tstart[j + 1]) or store (store 1: tk
+ * from tstart[j]) the triples of thread tid's blocks of targets. */
+static void scan_run(void *ctx, int tid, int nthr)
+{
+    const scan_job *s = ctx;
+    bispec *b = s->b;
+    for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK)
+        for (int j = j0; j < j0 + SCAN_BLOCK && j < b->nf; j++) {
+            int64_t t = s->store ? b->tstart[j] : 0;
+            if (s->reach[j] && j > 0 && !b->seed[j])
+                for (size_t k = 0; k < b->nd; k++)
+                    if (usable(b, j, k, s->reach)) {
+                        if (s->store)
+                            b->tk[t] = (uint16_t)k;
+                        t++;
+                    }
+            if (!s->store)
+                b->tstart[j + 1] = t;
+        }
+}
+
+/* The kernel's target order: tiles of BISPEC_TILE x BISPEC_TILE
+ * frequencies, row by row, so that consecutive targets share most u1 legs
+ * (u1 = u - u2 lies within R2 of u) and those stay in L2.  Any order
+ * gives the same bits: each triple is summed by one thread, batch after
+ * batch. */
+#define BISPEC_TILE 4
+static int cmp_key(const void *x, const void *y)
+{
+    const int64_t *a = x, *b = y;
+    return (*a > *b) - (*a < *b);
+}
+
+static int tile_order(bispec *b)
+{
+    int64_t *key = malloc((size_t)b->nf * sizeof *key);
+    if (!key)
+        return SL_ENOMEM;
+    int64_t ntp = b->lw / BISPEC_TILE + 1;
+    for (int j = 0; j < b->nf; j++) {
+        int64_t tile = (int64_t)((b->fq[j] + b->qm) / BISPEC_TILE) * ntp +
+                       (b->fp[j] + b->pm) / BISPEC_TILE;
+        key[j] = tile << 32 | j;
+    }
+    qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
+    for (int j = 0; j < b->nf; j++)
+        b->order[j] = (int32_t)(key[j] & 0xffffffff);
+    free(key);
+    return SL_OK;
+}
+
+/* Split order[] into nthr ranges of about equal triple counts. */
+static void split_ranges(bispec *b)
+{
+    int o = 0;
+    int64_t done = 0;
+    b->trange[0] = 0;
+    for (int r = 1; r < b->nthr; r++) {
+        int64_t goal = b->nt * r / b->nthr;
+        for (; o < b->nf && done < goal; o++)
+            done += b->tstart[b->order[o] + 1] - b->tstart[b->order[o]];
+        b->trange[r] = o;
+    }
+    b->trange[b->nthr] = b->nf;
+}
+
+int bispec_build_graph(bispec *b, sl_err *err)
+{
+    int rc = build_freqs(b);
+    b->o.support = NULL; /* not kept: the caller may free it */
+    if (rc != SL_OK)
+        return SL_ENOMEM;
+    if (b->nf < 4)
+        return sl_seterr(err, SL_EDATA, "bispec: support has only %d frequencies", b->nf);
+    unsigned char *reach = malloc((size_t)b->nf);
+    b->tstart = bispec_alloc(b, ((size_t)b->nf + 1) * sizeof *b->tstart);
+    if (!reach || !b->tstart) {
+        free(reach);
+        return SL_ENOMEM;
+    }
+    scan_reach(b, reach);
+    tpool_run(b->pool, scan_run, &(scan_job){b, reach, 0});
+    for (int j = 0; j < b->nf; j++) /* counts to starts */
+        b->tstart[j + 1] += b->tstart[j];
+    b->nt = b->tstart[b->nf];
+    b->tk = bispec_alloc(b, (size_t)b->nt * sizeof *b->tk);
+    if (b->tk)
+        tpool_run(b->pool, scan_run, &(scan_job){b, reach, 1});
+    free(reach);
+    b->trange = b->tk ? bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange) : NULL;
+    b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
+    if (!b->order || tile_order(b) != SL_OK)
+        return SL_ENOMEM;
+    split_ranges(b);
+    return SL_OK;
+}

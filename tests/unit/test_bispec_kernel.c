@@ -1,0 +1,171 @@
+/* test_bispec_kernel.c - the direct bispectrum's accumulation (bispec_
+ * kernel.c, bispec_graph.c): the same frames give the same bits on any
+ * thread count, full batches and a partial one; and the float kernel's
+ * sums stay within the bound bispec_kernel.c states, against the
+ * definition summed in double from double-precision spectra. */
+#include <complex.h>
+#include <fftw3.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/rng.h"
+#include "spectra/bispec.h"
+#include "tcheck.h"
+
+static float *random_frames(int n, int nfr, uint64_t seed)
+{
+    rng r;
+    rng_init(&r, seed, 0);
+    float *fr = malloc((size_t)nfr * n * n * sizeof *fr);
+    for (size_t k = 0; k < (size_t)nfr * n * n; k++)
+        fr[k] = (float)rng_uniform(&r);
+    return fr;
+}
+
+/* The flat sums (bispec_partial) of nfr frames on nthr threads. */
+static double *sums(const float *fr, int n, int nfr, int nthr, int snr, size_t *len,
+                    int *kb)
+{
+    bispec_opts o;
+    bispec_opts_defaults(&o);
+    o.r2_px = 9;
+    o.rcut_px = 0.45 * n;
+    o.measure = 0;
+    o.nthreads = nthr;
+    o.weight = snr ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
+    bispec *b = bispec_new(n, n, &o, NULL);
+    if (!b)
+        return NULL;
+    for (int f = 0; f < nfr; f++)
+        bispec_add(b, fr + (size_t)f * n * n);
+    *len = bispec_partial(b, NULL);
+    *kb = bispec_batch(b);
+    double *buf = malloc(*len * sizeof *buf);
+    bispec_partial(b, buf);
+    bispec_free(b);
+    return buf;
+}
+
+/* 1, 2, 3 and 7 threads: every accumulator equal bit for bit (the triple
+ * graph, the tiled ranges and the per-triple sums), for a frame count
+ * that leaves a partial batch of an odd size, with and without the
+ * second moment. */
+TEST(bits_equal_on_any_thread_count)
+{
+    int n = 48, nfr = 83;
+    float *fr = random_frames(n, nfr, 11);
+    for (int snr = 0; snr < 2; snr++) {
+        size_t len1 = 0;
+        int kb = 0;
+        double *ref = sums(fr, n, nfr, 1, snr, &len1, &kb);
+        CHECK(ref, "bispec_new failed");
+        CHECK(nfr % kb != 0, "%d frames fill whole batches of %d: no partial batch", nfr, kb);
+        static const int thr[] = {2, 3, 7};
+        for (int i = 0; i < 3; i++) {
+            size_t len = 0;
+            double *got = sums(fr, n, nfr, thr[i], snr, &len, &kb);
+            CHECK(got && len == len1, "%d threads: %zu sums, 1 thread %zu", thr[i], len, len1);
+            size_t diff = 0;
+            for (size_t k = 0; k < len; k++)
+                diff += memcmp(&got[k], &ref[k], sizeof *got) != 0;
+            free(got);
+            CHECK(diff == 0, "snr %d, %d threads: %zu of %zu sums differ from 1 thread", snr,
+                  thr[i], diff, len);
+        }
+        free(ref);
+    }
+    free(fr);
+}
+
+/* The phases (recursion pipelined over threads, then the refinement)
+ * equal bit for bit on 1, 2 and 5 threads: random frames, whose closure
+ * misfit is large, so the refinement runs too. */
+TEST(phases_equal_on_any_thread_count)
+{
+    int n = 48, nfr = 40;
+    float *fr = random_frames(n, nfr, 23);
+    double *ref = NULL;
+    static const int thr[] = {1, 2, 5};
+    for (int i = 0; i < 3; i++) {
+        bispec_opts o;
+        bispec_opts_defaults(&o);
+        o.r2_px = 9;
+        o.rcut_px = 0.45 * n;
+        o.measure = 0;
+        o.nthreads = thr[i];
+        o.refine_iters = 5;
+        bispec *b = bispec_new(n, n, &o, NULL);
+        CHECK(b, "bispec_new failed");
+        for (int f = 0; f < nfr; f++)
+            bispec_add(b, fr + (size_t)f * n * n);
+        double *ph = malloc((size_t)n * n * sizeof *ph);
+        CHECK(bispec_phase(b, ph, NULL) == SL_OK, "bispec_phase: %s", bispec_errmsg(b));
+        bispec_free(b);
+        if (!ref) {
+            ref = ph;
+            continue;
+        }
+        int same = memcmp(ph, ref, (size_t)n * n * sizeof *ph) == 0;
+        free(ph);
+        CHECK(same, "%d threads: phases differ from 1 thread", thr[i]);
+    }
+    free(ref);
+    free(fr);
+}
+
+/* The float kernel against the definition in double: for every stored
+ * triple, |acc - sum_f B_f| <= eps sum_f |B_f|.  The kernel's own share
+ * (products and the batch's tree sum in float) is ~(log2 kb + 4) 2^-24 =
+ * 6e-7 at kb 64; the float FFT's error on each of the three legs adds
+ * ~3 x 2^-24 log2(n) = 1e-6 at 48 px.  2e-6 holds both. */
+TEST(float_sums_within_bound)
+{
+    int n = 48, nfr = 70;
+    float *fr = random_frames(n, nfr, 5);
+    fftw_complex *F = fftw_alloc_complex((size_t)nfr * n * n);
+    for (size_t k = 0; k < (size_t)nfr * n * n; k++)
+        F[k] = fr[k];
+    for (int f = 0; f < nfr; f++) {
+        fftw_plan p = fftw_plan_dft_2d(n, n, F + (size_t)f * n * n, F + (size_t)f * n * n,
+                                       FFTW_FORWARD, FFTW_ESTIMATE);
+        fftw_execute(p);
+        fftw_destroy_plan(p);
+    }
+    bispec_opts o;
+    bispec_opts_defaults(&o);
+    o.r2_px = 9;
+    o.rcut_px = 0.45 * n;
+    o.measure = 0;
+    o.nthreads = 2;
+    bispec *b = bispec_new(n, n, &o, NULL);
+    CHECK(b, "bispec_new failed");
+    for (int f = 0; f < nfr; f++)
+        bispec_add(b, fr + (size_t)f * n * n);
+    double worst = 0;
+    for (size_t it = 0; it < bispec_ntriples(b); it++) {
+        int u1[2], u2[2];
+        double br, bi, wt;
+        bispec_triple(b, it, u1, u2, &br, &bi, &wt);
+        double complex s = 0;
+        double mag = 0;
+        for (int f = 0; f < nfr; f++) {
+            const fftw_complex *G = F + (size_t)f * n * n;
+#define AT(p, q) G[(((q) + n) % n) * n + ((p) + n) % n]
+            double complex x = AT(u1[0], u1[1]) * AT(u2[0], u2[1]) *
+                               conj(AT(u1[0] + u2[0], u1[1] + u2[1]));
+#undef AT
+            s += x;
+            mag += cabs(x);
+        }
+        double e = cabs((br + I * bi) * nfr - s) / mag;
+        worst = e > worst ? e : worst;
+    }
+    bispec_free(b);
+    fftw_free(F);
+    free(fr);
+    CHECK(worst < 2e-6, "float kernel: worst error %.3g of sum |B_f| (bound 2e-6)", worst);
+    CHECK(worst > 0, "no rounding at all: the kernel is not summing in float");
+}
+
+TC_MAIN(TC_CASE(bits_equal_on_any_thread_count), TC_CASE(phases_equal_on_any_thread_count), TC_CASE(float_sums_within_bound))

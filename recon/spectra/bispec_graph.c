@@ -104,17 +104,17 @@ static int build_freqs(bispec *b)
 }
 
 /* Is disk entry k a stored triple of target j (legs of lower rank,
- * u2 the shortest, both reachable)?  Its u1 leg in *l1_out. */
+ * u2 the shortest, both reachable)?  Without branches: about half the
+ * entries qualify, in no pattern a predictor learns, and a mispredicted
+ * branch cost more than every load here (the lut covers u - u2 for all
+ * k; a leg outside S, -1, reads reach[0]). */
 static inline int usable(const bispec *b, int j, size_t k, const unsigned char *reach)
 {
     int nf = b->nf, l2 = b->dleg[k], h2 = l2 < nf ? l2 : l2 - nf;
-    if (h2 >= j || !reach[h2])
-        return 0;
-    int l1 = b->lut[b->ubase[j] - b->doff[k]];
-    if (l1 < 0)
-        return 0;
-    int h1 = l1 < nf ? l1 : l1 - nf;
-    return h1 < j && h1 >= h2 && (h1 != h2 || l1 == l2) && reach[h1];
+    int l1 = b->lut[b->ubase[j] - b->doff[k]], in = l1 >= 0;
+    int l1c = in ? l1 : 0, h1 = l1c < nf ? l1c : l1c - nf;
+    return in & (h2 < j) & (h1 < j) & (h1 >= h2) & ((h1 != h2) | (l1 == l2)) &
+           (reach[h2] != 0) & (reach[h1] != 0);
 }
 
 /* reach[j]: the recursion can reach u_j from DC and the seeds (some
@@ -139,27 +139,38 @@ typedef struct scan_job {
     bispec *b;
     const unsigned char *reach;
     int store;
+    int fail;               /* a thread's scratch row was not allocated */
 } scan_job;
 
 /* tpool job: count (store 0: into tstart[j + 1]) or store (store 1: tk
- * from tstart[j]) the triples of thread tid's blocks of targets. */
+ * from tstart[j]) the triples of thread tid's blocks of targets.  The
+ * store writes every entry to a scratch row and advances past the usable
+ * ones, then copies the row: no branch, and no write past the target's
+ * own slots (the next target may be another thread's). */
 static void scan_run(void *ctx, int tid, int nthr)
 {
-    const scan_job *s = ctx;
+    scan_job *s = ctx;
     bispec *b = s->b;
+    uint16_t *row = s->store ? malloc((b->nd + 1) * sizeof *row) : NULL;
+    if (s->store && !row) {
+        s->fail = 1;
+        return;
+    }
     for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK)
         for (int j = j0; j < j0 + SCAN_BLOCK && j < b->nf; j++) {
-            int64_t t = s->store ? b->tstart[j] : 0;
+            int64_t t = 0;
             if (s->reach[j] && j > 0 && !b->seed[j])
-                for (size_t k = 0; k < b->nd; k++)
-                    if (usable(b, j, k, s->reach)) {
-                        if (s->store)
-                            b->tk[t] = (uint16_t)k;
-                        t++;
-                    }
-            if (!s->store)
+                for (size_t k = 0; k < b->nd; k++) {
+                    if (row)
+                        row[t] = (uint16_t)k;
+                    t += usable(b, j, k, s->reach);
+                }
+            if (row)
+                memcpy(b->tk + b->tstart[j], row, (size_t)t * sizeof *row);
+            else
                 b->tstart[j + 1] = t;
         }
+    free(row);
 }
 
 /* The kernel's target order: tiles of BISPEC_TILE x BISPEC_TILE
@@ -222,14 +233,18 @@ int bispec_build_graph(bispec *b, sl_err *err)
         return SL_ENOMEM;
     }
     scan_reach(b, reach);
-    tpool_run(b->pool, scan_run, &(scan_job){b, reach, 0});
+    scan_job job = {b, reach, 0, 0};
+    tpool_run(b->pool, scan_run, &job);
     for (int j = 0; j < b->nf; j++) /* counts to starts */
         b->tstart[j + 1] += b->tstart[j];
     b->nt = b->tstart[b->nf];
     b->tk = bispec_alloc(b, (size_t)b->nt * sizeof *b->tk);
+    job.store = 1;
     if (b->tk)
-        tpool_run(b->pool, scan_run, &(scan_job){b, reach, 1});
+        tpool_run(b->pool, scan_run, &job);
     free(reach);
+    if (job.fail)
+        return SL_ENOMEM;
     b->trange = b->tk ? bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange) : NULL;
     b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
     if (!b->order || tile_order(b) != SL_OK)

@@ -34,6 +34,10 @@ struct bispec {
     tpool *pool;             /* nthr threads: graph, kernel, phases */
     int32_t *trange;         /* ranges of order[] of equal triple counts */
     double *accd, *acc2d;    /* 2 per triple; 1 per triple */
+#define BISPEC_NMAP 3
+    void *map[BISPEC_NMAP];  /* mappings of acc, acc2 and fb (big_alloc) */
+    size_t maplen[BISPEC_NMAP];
+    int nmap;
     float *accf, *acc2f;
     float *fb;               /* 2F legs x (kb re + kb im) */
     int kb;                  /* frames per batch (bispec_batch) */

@@ -9,8 +9,9 @@
  * bounds test.  A triple stores only k, the u2 disk entry (uint16).
  *
  * Cost.  Listing the triples tests every (target, disk entry) pair, F nd
- * of them (3.8e7 at 200^2, R2 = 28), twice (count, then store): it runs
- * on the handle's threads.  Only which targets are reachable depends on
+ * of them (3.8e7 at 200^2, R2 = 28), once: it runs on the handle's
+ * threads, each block of targets into its own list (a transient copy of
+ * the list, 2 bytes per triple).  Only which targets are reachable depends on
  * the visiting order; that is settled first, serially, stopping at each
  * target's first usable triple (a few tests each).
  */
@@ -133,44 +134,77 @@ static void scan_reach(const bispec *b, unsigned char *reach)
 }
 
 /* Targets are dealt to threads in blocks of SCAN_BLOCK, round robin: the
- * triple count grows with |u|, so contiguous ranges would not balance. */
+ * triple count grows with |u|, so contiguous ranges would not balance.
+ * Each block's triples go to a list of its own (one pass, no count
+ * first), joined in order once every block is done. */
 #define SCAN_BLOCK 64
 typedef struct scan_job {
     bispec *b;
     const unsigned char *reach;
-    int store;
-    int fail;               /* a thread's scratch row was not allocated */
+    uint16_t **list;        /* per block: its triples' disk entries */
+    int fail;               /* a block's list was not allocated */
 } scan_job;
 
-/* tpool job: count (store 0: into tstart[j + 1]) or store (store 1: tk
- * from tstart[j]) the triples of thread tid's blocks of targets.  The
- * store writes every entry to a scratch row and advances past the usable
- * ones, then copies the row: no branch, and no write past the target's
- * own slots (the next target may be another thread's). */
+/* tpool job: list the triples of thread tid's blocks, each target's count
+ * in tstart[j + 1].  Every disk entry is written and the cursor advances
+ * past the usable ones only: no branch on usable(). */
 static void scan_run(void *ctx, int tid, int nthr)
 {
     scan_job *s = ctx;
     bispec *b = s->b;
-    uint16_t *row = s->store ? malloc((b->nd + 1) * sizeof *row) : NULL;
-    if (s->store && !row) {
-        s->fail = 1;
-        return;
-    }
-    for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK)
-        for (int j = j0; j < j0 + SCAN_BLOCK && j < b->nf; j++) {
-            int64_t t = 0;
+    for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK) {
+        int j1 = j0 + SCAN_BLOCK < b->nf ? j0 + SCAN_BLOCK : b->nf;
+        uint16_t *row = malloc(((size_t)(j1 - j0) * b->nd + 1) * sizeof *row);
+        if (!row) {
+            s->fail = 1;
+            return;
+        }
+        s->list[j0 / SCAN_BLOCK] = row;
+        int64_t t = 0;
+        for (int j = j0; j < j1; j++) {
+            int64_t t0 = t;
             if (s->reach[j] && j > 0 && !b->seed[j])
                 for (size_t k = 0; k < b->nd; k++) {
-                    if (row)
-                        row[t] = (uint16_t)k;
+                    row[t] = (uint16_t)k;
                     t += usable(b, j, k, s->reach);
                 }
-            if (row)
-                memcpy(b->tk + b->tstart[j], row, (size_t)t * sizeof *row);
-            else
-                b->tstart[j + 1] = t;
+            b->tstart[j + 1] = t - t0;
         }
-    free(row);
+    }
+}
+
+/* tpool job: copy thread tid's blocks' lists to tk. */
+static void join_run(void *ctx, int tid, int nthr)
+{
+    scan_job *s = ctx;
+    bispec *b = s->b;
+    for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK) {
+        int j1 = j0 + SCAN_BLOCK < b->nf ? j0 + SCAN_BLOCK : b->nf;
+        memcpy(b->tk + b->tstart[j0], s->list[j0 / SCAN_BLOCK],
+               (size_t)(b->tstart[j1] - b->tstart[j0]) * sizeof *b->tk);
+    }
+}
+
+/* The triples of every target: tstart and tk.  SL_ENOMEM. */
+static int scan_triples(bispec *b, const unsigned char *reach)
+{
+    size_t nblk = ((size_t)b->nf + SCAN_BLOCK - 1) / SCAN_BLOCK;
+    scan_job job = {b, reach, calloc(nblk, sizeof *job.list), 0};
+    if (!job.list)
+        return SL_ENOMEM;
+    tpool_run(b->pool, scan_run, &job);
+    if (!job.fail) {
+        for (int j = 0; j < b->nf; j++) /* counts to starts */
+            b->tstart[j + 1] += b->tstart[j];
+        b->nt = b->tstart[b->nf];
+        b->tk = bispec_alloc(b, (size_t)b->nt * sizeof *b->tk);
+        if (b->tk)
+            tpool_run(b->pool, join_run, &job);
+    }
+    for (size_t i = 0; i < nblk; i++)
+        free(job.list[i]);
+    free(job.list);
+    return job.fail || !b->tk ? SL_ENOMEM : SL_OK;
 }
 
 /* The kernel's target order: tiles of BISPEC_TILE x BISPEC_TILE
@@ -233,19 +267,11 @@ int bispec_build_graph(bispec *b, sl_err *err)
         return SL_ENOMEM;
     }
     scan_reach(b, reach);
-    scan_job job = {b, reach, 0, 0};
-    tpool_run(b->pool, scan_run, &job);
-    for (int j = 0; j < b->nf; j++) /* counts to starts */
-        b->tstart[j + 1] += b->tstart[j];
-    b->nt = b->tstart[b->nf];
-    b->tk = bispec_alloc(b, (size_t)b->nt * sizeof *b->tk);
-    job.store = 1;
-    if (b->tk)
-        tpool_run(b->pool, scan_run, &job);
+    rc = scan_triples(b, reach);
     free(reach);
-    if (job.fail)
-        return SL_ENOMEM;
-    b->trange = b->tk ? bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange) : NULL;
+    if (rc != SL_OK)
+        return rc;
+    b->trange = bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange);
     b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
     if (!b->order || tile_order(b) != SL_OK)
         return SL_ENOMEM;

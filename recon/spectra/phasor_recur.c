@@ -6,7 +6,8 @@
  * the modulus and the weight (phasor_triple: a square root, a division).
  * So the targets are taken in blocks of about PHASOR_BLOCK triples:
  * while this thread runs the recursion over one block's prepared triples
- * (two complex products each), the other threads prepare the next block.
+ * (two complex products each), the other threads prepare the next block,
+ * and this one joins them when its recursion is done.
  * With one thread the same preparation runs inline.  Either way each
  * triple is prepared and used by the same arithmetic in the same order,
  * so the phases do not depend on the thread count.
@@ -17,6 +18,7 @@
 #include "phasor_int.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 
 #define PHASOR_BLOCK 65536
@@ -28,10 +30,16 @@ typedef struct prepped {
     double br, bi, s, mod;
 } prepped;
 
+/* A block's preparation, cut into PREP_PARTS parts of its targets that
+ * threads claim one at a time: the workers from the start, the caller
+ * once its recursion over the previous block is done, so the two
+ * stages balance whatever their costs. */
+#define PREP_PARTS 16
 typedef struct prep_job {
     const phasor_graph *g;
     int j0, j1;
     prepped *out;
+    atomic_int next;        /* the next unclaimed part */
 } prep_job;
 
 /* Prepare targets [j0, j1) into out (indexed from tstart[j0]). */
@@ -49,17 +57,17 @@ static void prep(const phasor_graph *g, int j0, int j1, prepped *out)
         }
 }
 
-/* tpool job: workers 1..n-1 each prepare a share of the block's targets
- * (the caller, tid 0, runs the recursion meanwhile). */
+/* tpool job (and the caller's share): claim and prepare parts until none
+ * is left. */
 static void prep_job_run(void *ctx, int tid, int n)
 {
-    const prep_job *p = ctx;
-    if (tid == 0)
-        return;
+    prep_job *p = ctx;
+    (void)tid, (void)n;
     int64_t span = p->j1 - p->j0;
-    int a = p->j0 + (int)(span * (tid - 1) / (n - 1)), b = p->j0 + (int)(span * tid / (n - 1));
-    int64_t off = p->g->tstart[a] - p->g->tstart[p->j0];
-    prep(p->g, a, b, p->out + off);
+    for (int k; (k = atomic_fetch_add(&p->next, 1)) < PREP_PARTS;) {
+        int a = p->j0 + (int)(span * k / PREP_PARTS), b = p->j0 + (int)(span * (k + 1) / PREP_PARTS);
+        prep(p->g, a, b, p->out + (p->g->tstart[a] - p->g->tstart[p->j0]));
+    }
 }
 
 /* The recursion over targets [j0, j1), from their prepared triples. */
@@ -126,14 +134,14 @@ int phasor_recur(const phasor_graph *g, double *E, unsigned char *known, double 
     prep(g, j0, j1, buf[0]);
     while (j0 < n) {
         int j2 = j1 < n ? block_end(g, j1) : n;
-        prep_job next = {g, j1, j2, buf[1 - cur]};
+        prep_job next = {g, j1, j2, buf[1 - cur], 0};
         if (par && j1 < n)
             tpool_submit(g->pool, prep_job_run, &next);
         consume(g, j0, j1, buf[cur], E, known, &wsum, &miss);
+        if (j1 < n)
+            prep_job_run(&next, 0, 1);
         if (par && j1 < n)
             tpool_wait(g->pool);
-        else if (j1 < n)
-            prep(g, j1, j2, buf[1 - cur]);
         j0 = j1;
         j1 = j2;
         cur = 1 - cur;

@@ -52,6 +52,8 @@ typedef struct stream {
     /* wall time in stream_feed: reading and cleaning frames (read_s) and
      * the estimator's add (frame_s); pipeline_report.stage_s */
     double read_s, frame_s;
+    int ahead;            /* read ahead on a thread of its own (more than
+                             one thread allowed) */
     int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
@@ -72,6 +74,12 @@ int stream_next(stream *s);
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* CLOCK_MONOTONIC in seconds. */
 double stream_now_s(void);
+/* A pass over frames [k0, k1) whole, read and cleaned on a thread of its
+ * own while add runs (pipeline_ahead.c); s->frame holds the last frame
+ * added.  *ran 0 (and SL_OK) when there was no thread or ring to be had:
+ * the caller reads serially. */
+int stream_feed_ahead(stream *s, add_fn add, void *h, const char *what, sl_err *err,
+                      int *ran);
 /* Expect passes more feeds of every frame (for the progress estimate). */
 void stream_expect_passes(stream *s, int passes);
 

@@ -249,6 +249,7 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     stream_share_range(s, o->share, o->ref_path != NULL);
     s->progress = o->progress;
     s->progress_ctx = o->progress_ctx;
+    s->ahead = o->nthreads != 1;
     s->feed_total = 2.0 * s->n; /* until the plan is known */
     s->frame = malloc(sizeof(float) * s->w * s->h);
     if (!s->frame) {
@@ -311,6 +312,12 @@ static int feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
 {
     if (s->pb)
         return skip_feed(s, add, h, what, err);
+    int ran = 0;
+    if (s->ahead) {
+        int rc = stream_feed_ahead(s, add, h, what, err, &ran);
+        if (ran)
+            return rc;
+    }
     int rc = cube_reader_seek(s->rd, s->k0), k = s->k0;
     while (rc == SL_OK && (rc = k < s->k1 ? stream_next(s) : SL_EEND) == SL_OK) {
         if (s->pp)

@@ -404,6 +404,78 @@ TEST(r2_bounded_by_memory)
           "bounded R2 %d: sep %.3f\", dm %.3f; truth 0.45\", 1", r2[1], sep[1], dm[1]);
 }
 
+/* 1 and 2 threads give the same image bit for bit: the frames read ahead
+ * on a thread of their own (pipeline_ahead.c) against the serial pass,
+ * and each estimator's own threads. */
+TEST(images_equal_on_one_and_two_threads)
+{
+    tmp_cubes cubes = {0};
+    CHECK(tmp_sim(&cubes, "binary", 2000, 7) == SL_OK, "simulating");
+    static const int methods[] = {PIPE_DIRECT, PIPE_TSM, PIPE_TSM_FOURIER};
+    for (int m = 0; m < 3 && !t->failed; m++) {
+        float *img[2] = {NULL, NULL};
+        size_t npx = 0;
+        for (int k = 0; k < 2; k++) {
+            pipeline_opts o;
+            pipeline_opts_defaults(&o);
+            o.method = methods[m], o.fftw_measure = 0, o.nthreads = k + 1;
+            pipeline_result r;
+            sl_err e;
+            const char *paths[] = {cubes.path[0]};
+            if (pipeline_run(paths, 1, &o, &r, &e) != SL_OK) {
+                tc_note(t, 0, __FILE__, __LINE__, "pipeline_run", "%s, %d threads: %s",
+                        pipeline_method_name(methods[m]), k + 1, e.msg);
+                break;
+            }
+            npx = (size_t)r.width * r.height;
+            img[k] = malloc(npx * sizeof *img[k]);
+            memcpy(img[k], r.image, npx * sizeof *img[k]);
+            pipeline_result_clear(&r);
+        }
+        int same = img[0] && img[1] && memcmp(img[0], img[1], npx * sizeof *img[0]) == 0;
+        free(img[0]);
+        free(img[1]);
+        CHECK(same || t->failed, "%s: 2 threads' image differs from 1 thread's",
+              pipeline_method_name(methods[m]));
+    }
+    tmp_clean(&cubes);
+}
+
+/* A frame the reader refuses mid-pass (NaN, cleaning off) stops the run
+ * with the reader's message, read ahead or not, and nothing hangs. */
+TEST(reader_error_mid_pass_is_named)
+{
+    char dir[] = "/tmp/sl_pipeXXXXXX", path[64];
+    CHECK(mkdtemp(dir), "mkdtemp");
+    snprintf(path, sizeof path, "%s/nan.fits", dir);
+    cube_writer *w = NULL;
+    float fr[N * N];
+    CHECK(cube_writer_open(&w, path, N, N, -32, NULL, NULL) == SL_OK, "open %s", path);
+    for (int k = 0; k < 12; k++) {
+        for (int i = 0; i < N * N; i++)
+            fr[i] = (float)((i * 7 + k * 13) % 29);
+        if (k == 9)
+            fr[5] = NAN;
+        cube_writer_append(w, fr);
+    }
+    cube_writer_close(w);
+    cube_writer_free(w);
+    for (int k = 1; k <= 2; k++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = PIPE_TSM_FOURIER, o.fftw_measure = 0, o.nthreads = k, o.prep = 0;
+        pipeline_result r;
+        sl_err e = {0};
+        const char *paths[] = {path};
+        int rc = pipeline_run(paths, 1, &o, &r, &e);
+        if (rc == SL_OK)
+            pipeline_result_clear(&r);
+        CHECK(rc != SL_OK && strstr(e.msg, "nan.fits"), "%d threads: rc %d, \"%s\"", k, rc, e.msg);
+    }
+    unlink(path);
+    rmdir(dir);
+}
+
 TEST(bad_inputs_are_named)
 {
     pipeline_opts o;
@@ -422,4 +494,5 @@ TC_MAIN(TC_CASE(every_method_measures_the_binary), TC_CASE(photon_counting_cube)
         TC_CASE(tsm_corrected_phases), TC_CASE(tsm_corrected_phases_need_photons),
         TC_CASE(camera_gain_gives_photon_statistics),
         TC_CASE(few_angles_iterative_inverse),
+        TC_CASE(images_equal_on_one_and_two_threads), TC_CASE(reader_error_mid_pass_is_named),
         TC_CASE(bad_inputs_are_named))

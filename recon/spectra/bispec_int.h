@@ -48,8 +48,9 @@ struct bispec {
     double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
     double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
     double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
-    float *win, *in, *in2;
-    fftwf_complex *out, *out2;
+    float *win, *in, *in2;   /* kb frames, npad floats apart */
+    fftwf_complex *out, *out2; /* their transforms, nhp apart */
+    size_t npad, nhp;
     fftwf_plan plan, plan2;
     double *phi, *work;
     unsigned char *known;

@@ -1,6 +1,7 @@
 /* bispec_kernel.c - bispec.h's accumulation: each frame's spectrum into
  * the batch buffer (bispec_add), and the triple kernel over a full batch
- * (bispec_flush) on opts.nthreads threads.
+ * (bispec_flush) on opts.nthreads threads: the batch's transforms, the
+ * spread of its spectra over the legs, and the triple kernel.
  *
  * The batch buffer holds, per leg, kb real parts then kb imaginary parts
  * (conjugates pre-made for the minus legs), so the kernel is branch-free
@@ -109,12 +110,73 @@ static void kjob(void *ctx, int tid, int n)
     kernel(b, b->trange[tid], b->trange[tid + 1]);
 }
 
-/* Run the kernel over the batch (the lanes of a partial batch up to the
- * next vector zeroed: they add nothing; vectors beyond are skipped). */
+/* tpool job: thread tid transforms frames tid, tid + n, ... of the batch
+ * (fftwf_execute_dft_r2c on the handle's plans: every frame slot has the
+ * planned arrays' alignment). */
+static void fft_job(void *ctx, int tid, int n)
+{
+    bispec *b = ctx;
+    for (int k = tid; k < b->nb; k += n) {
+        fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
+        if (b->plan2)
+            fftwf_execute_dft_r2c(b->plan2, b->in2 + (size_t)k * b->npad,
+                                  b->out2 + (size_t)k * b->nhp);
+    }
+}
+
+/* Frequency j of the batch's spectra into its + and - legs' lanes, and
+ * its sums over the batch's frames, in frame order. */
+static void spread_freq(bispec *b, int j)
+{
+    size_t K = (size_t)b->kb, o = (size_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
+    float *pj = b->fb + (size_t)j * 2 * K, *mj = pj + (size_t)b->nf * 2 * K;
+    for (int s = 0; s < b->nb; s++) {
+        const fftwf_complex *f = b->out + (size_t)s * b->nhp;
+        float re = crealf(f[o]), im = cimagf(f[o]);
+        pj[s] = re;
+        pj[K + s] = im;
+        mj[s] = re;
+        mj[K + s] = -im;
+        double p2 = (double)re * re + (double)im * im;
+        b->psum[j] += p2;
+        if (!b->xsum)
+            continue;
+        /* X = F_w conj(F_{w^2}); without a window that is |F|^2. */
+        if (b->out2) {
+            const fftwf_complex *f2 = b->out2 + (size_t)s * b->nhp;
+            double r2 = crealf(f2[o]), i2 = cimagf(f2[o]);
+            b->xsum[2 * j] += re * r2 + im * i2;
+            b->xsum[2 * j + 1] += im * r2 - re * i2;
+            if (b->w2ft) { /* F (rn^2 / g) conj W2 */
+                double wr = b->w2ft[2 * j], wi = b->w2ft[2 * j + 1];
+                b->xsum[2 * j] += re * wr - im * wi;
+                b->xsum[2 * j + 1] += re * wi + im * wr;
+            }
+        } else {
+            b->xsum[2 * j] += p2;
+        }
+    }
+}
+
+/* tpool job: thread tid spreads its share of the frequencies. */
+static void spread_job(void *ctx, int tid, int n)
+{
+    bispec *b = ctx;
+    int j1 = (int)((int64_t)b->nf * (tid + 1) / n);
+    for (int j = (int)((int64_t)b->nf * tid / n); j < j1; j++)
+        spread_freq(b, j);
+}
+
+/* Transform the batch's frames and spread them over the legs (both on
+ * the handle's threads: per frame, then per frequency), then run the
+ * kernel over it (the lanes of a partial batch up to the next vector
+ * zeroed: they add nothing; vectors beyond are skipped). */
 void bispec_flush(bispec *b)
 {
     if (!b->nb)
         return;
+    tpool_run(b->pool, fft_job, b);
+    tpool_run(b->pool, spread_job, b);
     int used = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES * BISPEC_LANES;
     if (b->nb < used)
         for (size_t l = 0; l < 2 * (size_t)b->nf; l++)
@@ -131,12 +193,16 @@ void bispec_flush(bispec *b)
 
 double bispec_kernel_s(const bispec *b) { return b ? b->kernel_s : 0; }
 
+/* The frame, windowed, into the batch's next slot (and w^2 times it for
+ * the photon terms); its transform waits for the batch. */
 int bispec_add(bispec *b, const float *frame)
 {
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
     size_t npx = (size_t)b->w * b->h;
+    float *in = b->in + (size_t)b->nb * b->npad;
+    float *in2 = b->in2 ? b->in2 + (size_t)b->nb * b->npad : NULL;
     double w2 = 0, w3 = 0;
     for (size_t i = 0; i < npx; i++) {
         float v = frame[i];
@@ -145,42 +211,11 @@ int bispec_add(bispec *b, const float *frame)
                              "bispec_add: frame %d pixel %zu is not finite",
                              b->n, i);
         float wv = b->win ? b->win[i] : 1.0f;
-        b->in[i] = wv * v;
-        if (b->in2)
-            b->in2[i] = wv * wv * v;
+        in[i] = wv * v;
+        if (in2)
+            in2[i] = wv * wv * v;
         w2 += (double)wv * wv * v;
         w3 += (double)wv * wv * wv * v;
-    }
-    fftwf_execute(b->plan);
-    if (b->plan2)
-        fftwf_execute(b->plan2);
-    int nf = b->nf, s = b->nb;
-    for (int j = 0; j < nf; j++) {
-        size_t o = (size_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
-        float re = crealf(b->out[o]), im = cimagf(b->out[o]);
-        size_t K = (size_t)b->kb;
-        float *pj = b->fb + (size_t)j * 2 * K, *mj = pj + (size_t)nf * 2 * K;
-        pj[s] = re;
-        pj[K + s] = im;
-        mj[s] = re;
-        mj[K + s] = -im;
-        double p2 = (double)re * re + (double)im * im;
-        b->psum[j] += p2;
-        if (b->xsum) {
-            /* X = F_w conj(F_{w^2}); without a window that is |F|^2. */
-            if (b->out2) {
-                double r2 = crealf(b->out2[o]), i2 = cimagf(b->out2[o]);
-                b->xsum[2 * j] += re * r2 + im * i2;
-                b->xsum[2 * j + 1] += im * r2 - re * i2;
-                if (b->w2ft) { /* F (rn^2 / g) conj W2 */
-                    double wr = b->w2ft[2 * j], wi = b->w2ft[2 * j + 1];
-                    b->xsum[2 * j] += re * wr - im * wi;
-                    b->xsum[2 * j + 1] += re * wi + im * wr;
-                }
-            } else {
-                b->xsum[2 * j] += p2;
-            }
-        }
     }
     b->w2sum += w2;
     b->w3sum += w3;

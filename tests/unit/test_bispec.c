@@ -661,15 +661,15 @@ TEST(memory_formula)
         o.nthreads = 1 + (v & 1);
         bispec *b = bispec_new(w, h, &o, NULL);
         CHECK(b, "bispec_new failed");
-        double T = (double)bispec_ntriples(b), F = bispec_nfreq(b);
+        double T = (double)bispec_ntriples(b), F = bispec_nfreq(b), kb = bispec_batch(b);
         int A = o.acc_float ? 8 : 16, snr = (v & 2) != 0, ph = (v & 4) != 0,
             win = (v & 8) != 0;
         double want = T * (2 + A * (1 + snr / 2.0)) +
-                      F * (90 + 16 * bispec_batch(b) + 16 * ph) +
+                      F * (90 + 16 * kb + 16 * ph) +
                       8 + 8.0 * (2 * R2 + 1) * (2 * R2 + 1) + 4 * (o.nthreads + 1) +
                       4.0 * (w + 2 * R2 + 1) * (h + 2 * R2 + 1) +
-                      (double)w * h * (12 + 4 * win + 4 * ph * win) +
-                      (double)h * (w / 2 + 1) * (24 + 8 * ph * win);
+                      (double)w * h * (8 + 4 * win + 4.0 * kb * (1 + ph * win)) +
+                      (double)h * (w / 2 + 1) * (16 + 8.0 * kb * (1 + ph * win));
         double got = (double)bispec_memory_bytes(b);
         bispec_free(b);
         CHECK(got == want, "variant %d: allocated %.0f, formula %.0f", v, got,

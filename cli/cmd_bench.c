@@ -448,7 +448,7 @@ int cmd_bench(int argc, char **argv)
     GOptionEntry entries[] = {
         {"quick", 0, 0, G_OPTION_ARG_NONE, &a.quick, "a handful of points (< 1 min; make bench)", NULL},
         {"paper", 0, 0, G_OPTION_ARG_NONE, &a.paper, "the paper's Table 2 layout and a binaries table", NULL},
-        {"speed", 0, 0, G_OPTION_ARG_NONE, &a.speed, "the speed targets of issues 3 and 6 (200^2, 100 frames, 5 runs)", NULL},
+        {"speed", 0, 0, G_OPTION_ARG_NONE, &a.speed, "the speed targets (200^2, 100 frames, 5 runs; docs/results.md)", NULL},
         {"skips-report", 0, 0, G_OPTION_ARG_NONE, &a.skips_report, "each skip on/off and auto against fixed TSM-180 (200^2, 100 frames)", NULL},
         {"scenes", 0, 0, G_OPTION_ARG_STRING, &a.scenes, "binary,six-star,extended", "LIST"},
         {"sizes", 0, 0, G_OPTION_ARG_STRING, &a.sizes, "frame sizes, N or WxH (e.g. 64,128,200; --paper: 200,128)", "LIST"},

@@ -14,8 +14,15 @@
 #include "fakecam_app.h"
 #include "fakesrc.h"
 
+/* GigE Vision bootstrap "Serial Number" (16 bytes): the fake camera's
+ * GenICam DeviceSerialNumber reads it, as bin/specklab-fake-camera's
+ * --serial sets it. */
+#define GVBS_SERIAL_OFFSET 0x00d8
+#define GVBS_SERIAL_SIZE 16
+
 typedef struct fakesrc {
     renderer *r;
+    char serial[GVBS_SERIAL_SIZE];
     stage_poll *poll;
     int poll_ms;
     GThread *thread;
@@ -26,7 +33,7 @@ typedef struct fakesrc {
 } fakesrc;
 
 typedef struct src_opts {
-    char *size, *screen_r0, *mask_slots, *stage;
+    char *size, *screen_r0, *mask_slots, *stage, *serial;
     double dm, sep_arcsec, pa_deg;
     gint64 seed;
     int screen_slot, mask_slot, stage_unit, stage_poll_ms;
@@ -40,6 +47,7 @@ static int src_attach(void *data, void *fake_camera, sl_err *err)
     fakesrc *s = data;
     ArvFakeCamera *fake = fake_camera;
     guint32 exposure_us = renderer_init_camera(s->r, fake);
+    arv_fake_camera_write_memory(fake, GVBS_SERIAL_OFFSET, GVBS_SERIAL_SIZE, s->serial);
     renderer_attach(s->r, fake);
     int rc = renderer_prepare(s->r, exposure_us, 0, err);
     if (rc == SL_OK)
@@ -93,6 +101,7 @@ static int parse_args(const char *args, src_opts *o, sl_err *err)
 {
     GOptionEntry entries[] = {
         {"size", 0, 0, G_OPTION_ARG_STRING, &o->size, NULL, NULL},
+        {"serial", 0, 0, G_OPTION_ARG_STRING, &o->serial, NULL, NULL},
         {"seed", 0, 0, G_OPTION_ARG_INT64, &o->seed, NULL, NULL},
         {"screen-r0", 0, 0, G_OPTION_ARG_STRING, &o->screen_r0, NULL, NULL},
         {"mask-slots", 0, 0, G_OPTION_ARG_STRING, &o->mask_slots, NULL, NULL},
@@ -117,6 +126,9 @@ static int parse_args(const char *args, src_opts *o, sl_err *err)
         g_error_free(ge);
     } else if (argc > 1) {
         rc = sl_seterr(err, SL_EINVAL, "fake camera source: unexpected argument '%s'", argv[1]);
+    } else if (o->serial && strlen(o->serial) >= GVBS_SERIAL_SIZE) {
+        rc = sl_seterr(err, SL_EINVAL, "fake camera source: --serial: at most %d characters",
+                       GVBS_SERIAL_SIZE - 1);
     } else if (o->stage_poll_ms < 1) {
         rc = sl_seterr(err, SL_EINVAL, "fake camera source: --stage-poll-ms must be >= 1");
     }
@@ -173,7 +185,10 @@ int fakesrc_new(camera_source *out, const char *args, sl_err *err)
     int rc = parse_args(args, &o, err);
     if (rc == SL_OK)
         rc = build(s, &o, err);
+    if (rc == SL_OK)
+        snprintf(s->serial, sizeof s->serial, "%s", o.serial ? o.serial : "SPECKLE01");
     g_free(o.size), g_free(o.screen_r0), g_free(o.mask_slots), g_free(o.stage);
+    g_free(o.serial);
     if (rc != SL_OK) {
         src_release(s);
         return rc;

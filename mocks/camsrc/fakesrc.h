@@ -4,7 +4,7 @@
  * process that drives Aravis's in-process fake camera.
  *
  * args are bin/specklab-fake-camera's flags that choose the frames, in
- * shell syntax: --size --seed --screen-r0 --mask-slots --screen-slot
+ * shell syntax: --serial --size --seed --screen-r0 --mask-slots --screen-slot
  * --mask-slot --dm-mag --sep-arcsec --pa-deg and the stage ones, --stage
  * HOST:PORT --stage-unit --stage-poll-ms, with the same defaults.  With
  * --stage a thread polls the fake stage (the first answer, bounded, is

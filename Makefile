@@ -125,7 +125,8 @@ CAMSRC_LIB := $(BUILD)/libcamsrc.a
 # shared object needs position-independent code: camsrc, the recon rooms
 # the simulator uses and common/ are compiled again under $(BUILD)/pic
 # (an archive, so only the members used are linked); only the entry point
-# is exported.
+# is exported.  Sanitized builds leave the runtime's symbols to the host
+# program, so they link without --no-undefined.
 FAKESRC_SO  := $(BIN)/specklab-fake-source.so
 FAKESRC_PIC := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard mocks/fake-source/*.c mocks/camsrc/*.c))
 FAKESRC_LIB_SRC := $(wildcard recon/base/*.c recon/sim/*.c recon/io/*.c common/*.c)
@@ -221,7 +222,7 @@ $(FAKESRC_LIB): $(patsubst %.c,$(BUILD)/pic/%.o,$(FAKESRC_LIB_SRC))
 
 $(FAKESRC_SO): $(FAKESRC_PIC) $(FAKESRC_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS_ALL) -shared -Wl,-Bsymbolic -Wl,--no-undefined -o $@ $(FAKESRC_PIC) \
+	$(CC) $(LDFLAGS_ALL) -shared -Wl,-Bsymbolic $(if $(SAN),,-Wl,--no-undefined) -o $@ $(FAKESRC_PIC) \
 	    $(FAKESRC_LIB) $(recon_libs) $(drv_libs)
 
 $(BUILD)/schema/catalog_res.c: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)

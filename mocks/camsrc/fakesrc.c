@@ -120,11 +120,12 @@ static int parse_args(const char *args, src_opts *o, sl_err *err)
     GOptionContext *ctx = g_option_context_new(NULL);
     g_option_context_add_main_entries(ctx, entries, NULL);
     g_option_context_set_help_enabled(ctx, FALSE);
+    /* parse_strv frees the arguments it takes out of argv. */
     if (!g_shell_parse_argv(line, &argc, &argv, &ge) ||
-        !g_option_context_parse(ctx, &argc, &argv, &ge)) {
+        !g_option_context_parse_strv(ctx, &argv, &ge)) {
         rc = sl_seterr(err, SL_EINVAL, "fake camera source '%s': %s", args, ge->message);
         g_error_free(ge);
-    } else if (argc > 1) {
+    } else if ((argc = (int)g_strv_length(argv)) > 1) {
         rc = sl_seterr(err, SL_EINVAL, "fake camera source: unexpected argument '%s'", argv[1]);
     } else if (o->serial && strlen(o->serial) >= GVBS_SERIAL_SIZE) {
         rc = sl_seterr(err, SL_EINVAL, "fake camera source: --serial: at most %d characters",

@@ -110,7 +110,7 @@ CLI_MAIN  := $(BUILD)/cli/main.o
 # mocks/camsrc is no program: the camera mocks' shared frame source (the
 # simulator renderer, the stage poll, the model options), an archive each
 # mock links (only the members it uses are pulled in).
-MOCK_DIRS := $(filter-out camsrc,$(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c)))))
+MOCK_DIRS := $(filter-out camsrc fake-source,$(patsubst mocks/%/,%,$(sort $(dir $(wildcard mocks/*/*.c)))))
 MOCK_BIN  := $(MOCK_DIRS:%=$(BIN)/specklab-%)
 # Only the link rule's secondary expansion names a mock's objects, so make
 # takes them for intermediates and deletes them after a fresh build; the
@@ -119,6 +119,18 @@ MOCK_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard $(MOCK_DIRS:%=mocks/%/*.c)))
 .SECONDARY: $(MOCK_OBJ)
 CAMSRC_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard mocks/camsrc/*.c))
 CAMSRC_LIB := $(BUILD)/libcamsrc.a
+# mocks/fake-source -> bin/specklab-fake-source.so: camsrc's simulator
+# source (fakesrc.h) for the "fake" camera backend of a process that must
+# not link a mock (specklabd loads it when [camera] source names it).  A
+# shared object needs position-independent code: camsrc, the recon rooms
+# the simulator uses and common/ are compiled again under $(BUILD)/pic
+# (an archive, so only the members used are linked); only the entry point
+# is exported.  Sanitized builds leave the runtime's symbols to the host
+# program, so they link without --no-undefined.
+FAKESRC_SO  := $(BIN)/specklab-fake-source.so
+FAKESRC_PIC := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard mocks/fake-source/*.c mocks/camsrc/*.c))
+FAKESRC_LIB_SRC := $(wildcard recon/base/*.c recon/sim/*.c recon/io/*.c common/*.c)
+FAKESRC_LIB := $(BUILD)/pic/libfakesrc.a
 
 TEST_SRC  := $(wildcard tests/unit/test_*.c)
 TEST_BIN  := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%) $(TFIG_BIN)
@@ -152,7 +164,7 @@ MPI_SRC   := $(wildcard mpi/*.c)
 MPI_OBJ   := $(MPI_SRC:%.c=$(BUILD)/%.o)
 MPI_BIN   := $(if $(filter 1,$(MPI)),$(BIN)/specklab-mpi)
 
-PROGS := $(BIN)/specklab $(MOCK_BIN) $(if $(DAEMON_SRC),$(BIN)/specklabd) $(MPI_BIN)
+PROGS := $(BIN)/specklab $(MOCK_BIN) $(FAKESRC_SO) $(if $(DAEMON_SRC),$(BIN)/specklabd) $(MPI_BIN)
 
 .PHONY: all deps test quick stress soak soak-web asan asan-ci-build valgrind bench fuzz demo clean
 all: $(PROGS) $(ALL_TESTS)
@@ -199,6 +211,19 @@ $(CAMSRC_LIB): $(CAMSRC_OBJ)
 $(BIN)/specklab-%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard mocks/$$*/*.c)))) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(filter %.o,$^) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(drv_libs) $(mock_libs_$*)
+
+$(BUILD)/pic/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -fPIC -fvisibility=hidden -Irecon -Idrivers -Imocks/camsrc \
+	    $(recon_cflags) $(drv_cflags) -c $< -o $@
+
+$(FAKESRC_LIB): $(patsubst %.c,$(BUILD)/pic/%.o,$(FAKESRC_LIB_SRC))
+	rm -f $@ && ar rcs $@ $^
+
+$(FAKESRC_SO): $(FAKESRC_PIC) $(FAKESRC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS_ALL) -shared -Wl,-Bsymbolic $(if $(SAN),,-Wl,--no-undefined) -o $@ $(FAKESRC_PIC) \
+	    $(FAKESRC_LIB) $(recon_libs) $(drv_libs)
 
 $(BUILD)/schema/catalog_res.c: $(SCHEMA_RES) $(wildcard schema/migrations/*.sql)
 	@mkdir -p $(dir $@)
@@ -302,10 +327,12 @@ $(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
 	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/unit $(recon_cflags) $< -o $@ \
 	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
 
-$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(RECON_LIB) $(COMMON_LIB)
+# They may link camsrc (the simulator as the fake camera's source); the
+# shared object is there for those that load it as specklabd does.
+$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) | $(FAKESRC_SO)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(DRV_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
 
 # Install what pkg-config lacks (root) or say the exact apt-get line.
 deps:

@@ -20,11 +20,27 @@ static void schedule_reopen(runner *r, gint64 wait_us)
     r->cam_next_try_us = g_get_monotonic_time() + wait_us;
 }
 
+/* camera_open, and the fake backend's pixel source when configured
+ * (loaded per handle: a reopened camera gets a fresh one). */
+static int open_handle(runner *r, sl_err *e)
+{
+    const config *cfg = r->cfg;
+    int rc = camera_open(&r->cam, cfg->camera_backend, cfg->camera_address, e);
+    if (rc == SL_OK && cfg->camera_source &&
+        (rc = camera_load_source(r->cam, cfg->camera_source, cfg->camera_source_args)) != SL_OK) {
+        sl_seterr(e, rc, "%s", camera_errmsg(r->cam));
+        camera_close(r->cam);
+    }
+    if (rc != SL_OK)
+        r->cam = NULL;
+    return rc;
+}
+
 /* Open (r->cam NULL) and read the identity; noted either way. */
 static int open_camera(runner *r, sl_err *e)
 {
     camera_info info;
-    if (camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address, e) == SL_OK &&
+    if (open_handle(r, e) == SL_OK &&
         camera_info_get(r->cam, &info) == SL_OK && camera_check(r->cam) == SL_OK) {
         runner_note_camera(r, 1, &info, NULL);
         r->cam_fresh = 1;
@@ -96,11 +112,8 @@ static int attempt(runner *r, const runner_spec *sp, camera_config *cf, camera_i
                    sl_err *e)
 {
     int fresh = !r->cam || r->cam_fresh;
-    if (!r->cam && camera_open(&r->cam, r->cfg->camera_backend, r->cfg->camera_address,
-                               e) != SL_OK) {
-        r->cam = NULL;
+    if (!r->cam && open_handle(r, e) != SL_OK)
         return SL_EIO;
-    }
     int rc = camera_probe(r->cam);
     if (rc == CAMERA_ELOST)
         g_message("camera: %s; opening it again", camera_errmsg(r->cam));

@@ -18,11 +18,11 @@
 #include <string.h>
 #include <unistd.h>
 
-static const char *const known_keys[][16] = {
+static const char *const known_keys[][20] = {
     {"camera", "backend", "address", "exposure_us", "pixel_format",
      "frame_rate_hz", "roi", "buffers", "plate_scale_arcsec", "wavelength_nm",
      "lost_timeout_s", "max_failed_frames", "gain_e_per_adu", "read_noise_e",
-     "heartbeat_timeout_ms", NULL},
+     "heartbeat_timeout_ms", "source", "source_args", NULL},
     {"stage", "backend", "address", "unit", "device", "baud", "parity",
      "move_timeout_ms", "settle_ms", "response_timeout_ms", "call_timeout_ms",
      NULL},
@@ -339,6 +339,15 @@ static int read_values(config *c, GKeyFile *kf, sl_err *err)
     if (strcmp(c->pixel_format, "Mono16") && strcmp(c->pixel_format, "Mono8"))
         return sl_seterr(err, SL_EINVAL, "config [camera] pixel_format = '%s': expected "
                          "Mono16 or Mono8", c->pixel_format);
+    if ((rc = get_str(kf, "camera", "source", NULL, &c->camera_source, err)) ||
+        (rc = get_str(kf, "camera", "source_args", "", &c->camera_source_args, err)))
+        return rc;
+    if (c->camera_source && !c->camera_source[0])
+        g_clear_pointer(&c->camera_source, g_free);
+    if (c->camera_source && strcmp(c->camera_backend, "fake") != 0)
+        return sl_seterr(err, SL_EINVAL, "config [camera] source = '%s': only the fake "
+                         "backend takes a source (backend = %s)", c->camera_source,
+                         c->camera_backend);
     if ((rc = get_num(kf, "camera", "exposure_us", 10000, 1, 1e7, &c->exposure_us, err)) ||
         (rc = get_num(kf, "camera", "frame_rate_hz", NAN, 0.01, 1e5, &c->frame_rate_hz, err)) ||
         (rc = get_roi(kf, c->roi, err)) ||
@@ -491,6 +500,8 @@ void config_clear(config *c)
     g_free(c->camera_backend);
     g_free(c->camera_address);
     g_free(c->pixel_format);
+    g_free(c->camera_source);
+    g_free(c->camera_source_args);
     g_free(c->stage_backend);
     g_free(c->stage_host);
     g_free(c->stage_device);

@@ -7,7 +7,7 @@
  *   [camera]  backend address exposure_us pixel_format frame_rate_hz roi
  *             buffers plate_scale_arcsec wavelength_nm lost_timeout_s
  *             max_failed_frames gain_e_per_adu read_noise_e
- *             heartbeat_timeout_ms
+ *             heartbeat_timeout_ms source source_args
  *   [stage]   backend address unit device baud parity move_timeout_ms
  *             settle_ms response_timeout_ms call_timeout_ms
  *   [screens] SLOT=NAME ...        (the phase-screen wheel)
@@ -39,6 +39,10 @@ typedef struct config_slot {
 typedef struct config {
     /* [camera] */
     char *camera_backend, *camera_address, *pixel_format;
+    /* The fake backend's pixel source: a shared object (drivers/camera.h,
+     * camera_load_source) and its arguments; NULL: Aravis's own pattern.
+     * Tests only: the daemon links no mock and loads nothing unless told. */
+    char *camera_source, *camera_source_args;
     double exposure_us;         /* default for start-run */
     double frame_rate_hz;       /* NaN: leave the camera's */
     int roi[4];                 /* x, y, w, h; w == 0: the whole sensor */

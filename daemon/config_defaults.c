@@ -19,6 +19,8 @@ static const char defaults_text[] =
     "lost_timeout_s=10\n"
     "# the camera keeps this daemon in control this long without a heartbeat\n"
     "heartbeat_timeout_ms=6000\n"
+    "# source=bin/specklab-fake-source.so  (backend=fake only: the tests' simulator)\n"
+    "# source_args=--size 64 --stage 127.0.0.1:1502\n"
     "max_failed_frames=0\n"
     "# gain_e_per_adu=1       (at Gain 0 dB; unset: unknown, photon bias from the floor)\n"
     "# read_noise_e=2         (unset: unknown)\n"

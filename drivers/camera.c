@@ -9,6 +9,7 @@
  * setter: a few control round trips) and remembered, so that a reconnect
  * re-applies them whatever the backend.
  */
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,9 +36,12 @@ struct camera {
     char target[CAMERA_STR_MAX];
     camera_stats counted;  /* completed, failed, by_status, timeouts,
                               reconnects: this file's counters */
+    camera_source src;     /* a simulated sensor's pixels (fake backend) */
+    void *src_lib;         /* dlopen handle of src's library, or NULL */
 };
 
-static const camera_backend *const backends[] = {&camera_backend_aravis, NULL};
+static const camera_backend *const backends[] = {&camera_backend_aravis,
+                                                 &camera_backend_fake, NULL};
 
 const camera_backend *const *camera_backends(void)
 {
@@ -56,7 +60,7 @@ const camera_backend *camera_backend_find(const char *name)
 
 static int unknown_backend(sl_err *err, const char *name)
 {
-    return sl_seterr(err, SL_EINVAL, "unknown camera backend '%s' (known: aravis)",
+    return sl_seterr(err, SL_EINVAL, "unknown camera backend '%s' (known: aravis, fake)",
                      name);
 }
 
@@ -106,8 +110,64 @@ void camera_close(camera *c)
         return;
     if (c->started)
         c->be->stop(c->st, &c->err);
+    /* The device (and its stream thread, which calls the source) goes
+     * first; then the source and its library. */
     c->be->close(c->st);
+    if (c->src.release)
+        c->src.release(c->src.data);
+    if (c->src_lib)
+        dlclose(c->src_lib);
     free(c);
+}
+
+int camera_set_source(camera *c, const camera_source *src)
+{
+    if (!src || !src->attach)
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: a source needs attach", c->target);
+    if (!c->be->set_source)
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: the %s backend has no simulated "
+                         "sensor to feed", c->target, c->be->name);
+    int rc = c->be->set_source(c->st, src, &c->err);
+    if (rc != SL_OK)
+        return rc;
+    if (c->src.release)
+        c->src.release(c->src.data);
+    c->src = *src;
+    return SL_OK;
+}
+
+int camera_load_source(camera *c, const char *path, const char *args)
+{
+    if (!path || !path[0])
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: no source library given", c->target);
+    if (!c->be->set_source)
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: the %s backend has no simulated "
+                         "sensor to feed", c->target, c->be->name);
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib)
+        return sl_seterr(&c->err, SL_EIO, "camera %s: source %s: %s", c->target, path,
+                         dlerror());
+    /* POSIX's way from a data pointer to a function pointer. */
+    camera_source_entry entry;
+    *(void **)&entry = dlsym(lib, CAMERA_SOURCE_ENTRY);
+    if (!entry) {
+        dlclose(lib);
+        return sl_seterr(&c->err, SL_EINVAL, "camera %s: %s exports no %s", c->target, path,
+                         CAMERA_SOURCE_ENTRY);
+    }
+    camera_source src = {0};
+    int rc = entry(args ? args : "", &src, &c->err);
+    if (rc == SL_OK && (rc = camera_set_source(c, &src)) != SL_OK && src.release)
+        src.release(src.data);
+    if (rc != SL_OK) {
+        dlclose(lib);
+        return rc;
+    }
+    /* The previous library's source was released by camera_set_source. */
+    if (c->src_lib)
+        dlclose(c->src_lib);
+    c->src_lib = lib;
+    return SL_OK;
 }
 
 const char *camera_errmsg(const camera *c)

@@ -2,7 +2,8 @@
  *
  * A backend is a const table of operations (struct camera_backend) chosen
  * by name: "aravis" drives GigE Vision and USB3 Vision cameras through
- * Aravis 0.8.  camera.c validates arguments, checks values against the
+ * Aravis 0.8; "fake" drives Aravis's in-process fake camera (below: the
+ * same code paths as "aravis", no network).  camera.c validates arguments, checks values against the
  * camera's capabilities, remembers settings, counts frames and dispatches;
  * a backend only talks to its library.
  *
@@ -147,6 +148,8 @@ typedef struct camera camera;
  * the arguments (non-NULL, positive sizes, values within camera_caps, a
  * started stream for pop).  reconnect only re-opens (dropping any
  * stream); camera.c then re-applies the settings and restarts. */
+struct camera_source;
+
 typedef struct camera_backend {
     const char *name;
     const char *summary;
@@ -180,9 +183,13 @@ typedef struct camera_backend {
      * transport's keep-alive last saw, no traffic; probe 1: ask the camera
      * (one control round trip). */
     int (*check)(void *st, int probe, sl_err *err);
+    /* Where a simulated sensor's pixels come from (camera_set_source);
+     * NULL for a backend of real cameras. */
+    int (*set_source)(void *st, const struct camera_source *src, sl_err *err);
 } camera_backend;
 
 extern const camera_backend camera_backend_aravis;
+extern const camera_backend camera_backend_fake;
 
 /* The backend called name ("aravis"); NULL or "" gives the default
  * (aravis).  NULL when unknown. */
@@ -256,6 +263,51 @@ void camera_stats_get(const camera *c, camera_stats *out);
  * made through this interface are re-applied and the stream restarted if
  * it was started.  Statistics carry over. */
 int camera_reconnect(camera *c, int timeout_ms);
+
+/* ---- the in-process fake camera ("fake" backend) ------------------------
+ *
+ * Aravis's "Fake" interface serves one camera inside this process (device
+ * id "Fake_1"): an ArvFakeDevice whose ArvFakeCamera has GenICam
+ * registers (ROI, binning, Mono8/16, exposure, gain, frame rate,
+ * triggers) and a stream thread that fills each frame through a
+ * fill-pattern callback.  The "fake" backend opens it with the aravis
+ * backend's own operations (camera_aravis.c), so settings, streaming,
+ * frame accounting and reconnects run the production code; only the
+ * transport differs: no GVCP/GVSP, so no fixed UDP port, no network
+ * namespace, no packet loss and no heartbeat (camera_check is SL_OK,
+ * camera_heartbeat_ms reads 0).  Faults of the link (killed camera,
+ * packet loss, a dropped controller) need the GigE mock and stay with the
+ * network tests (docs/testing.md).  Each open (and each reconnect) gets a
+ * fresh fake camera; the address must name a fake device ("Fake_1"), so
+ * a "fake" configuration never drives a real camera.
+ *
+ * Pixels: without a source, Aravis's own diagonal ramp.  A source sets the
+ * fake camera's sensor registers and fill pattern on every (re)connect:
+ * attach(data, fake_camera) gets the ArvFakeCamera (void * here: camera.h
+ * does not include Aravis) before any setting is re-applied; the fill
+ * callback then runs in Aravis's stream thread.  release(data) runs at
+ * camera_close.  Tests that link the simulator (mocks/camsrc) attach it
+ * directly; a process that must not link a mock (specklabd) loads one
+ * from a shared object with camera_load_source: the library exports
+ * CAMERA_SOURCE_ENTRY, which parses args (that library's own flags) and
+ * fills a camera_source.  The daemon does so only when its configuration
+ * names one ([camera] source; the tests' bin/specklab-fake-source.so
+ * renders the simulator and polls the fake stage as the GigE mock does). */
+typedef struct camera_source {
+    int (*attach)(void *data, void *fake_camera, sl_err *err);
+    void (*release)(void *data);   /* may be NULL */
+    void *data;
+} camera_source;
+
+#define CAMERA_SOURCE_ENTRY "specklab_camera_source"
+typedef int (*camera_source_entry)(const char *args, camera_source *out, sl_err *err);
+
+/* Attach src now and on every reconnect; a previous source is released.
+ * SL_EINVAL on a backend without simulated sensor (a real camera). */
+int camera_set_source(camera *c, const camera_source *src);
+/* dlopen path, call its CAMERA_SOURCE_ENTRY with args, camera_set_source;
+ * the library is closed at camera_close (after release). */
+int camera_load_source(camera *c, const char *path, const char *args);
 
 /* Names: "Mono16", "SUCCESS"/"MISSING_PACKETS", "free-run", "timeout"... */
 const char *camera_pixfmt_name(camera_pixfmt f);

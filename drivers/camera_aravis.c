@@ -128,13 +128,17 @@ static int connect_camera(arvcam *a, sl_err *err)
     g_atomic_int_set(&a->lost, 0);
     a->lost_handler = g_signal_connect(a->dev, "control-lost",
                                        G_CALLBACK(on_control_lost), a);
-    return SL_OK;
+    int rc = arvcam_fake_attach(a, err);
+    if (rc != SL_OK)
+        teardown(a);
+    return rc;
 }
 
-static int arv_open(void **st, const char *target, sl_err *err)
+int arvcam_open_target(void **st, const char *target, int fake, sl_err *err)
 {
     arvcam *a = g_new0(arvcam, 1);
     copy_str(a->target, sizeof a->target, target);
+    a->fake = fake;
     int rc = connect_camera(a, err);
     if (rc != SL_OK) {
         g_free(a);
@@ -142,6 +146,11 @@ static int arv_open(void **st, const char *target, sl_err *err)
     }
     *st = a;
     return SL_OK;
+}
+
+static int arv_open(void **st, const char *target, sl_err *err)
+{
+    return arvcam_open_target(st, target, 0, err);
 }
 
 static void arv_close(void *st)
@@ -182,6 +191,8 @@ static int arv_info(void *st, camera_info *out, sl_err *err)
         }
     } else if (arv_camera_is_uv_device(a->cam)) {
         copy_str(out->protocol, sizeof out->protocol, "USB3Vision");
+    } else if (ARV_IS_FAKE_DEVICE(a->dev)) {
+        copy_str(out->protocol, sizeof out->protocol, "Fake");
     }
     return SL_OK;
 }
@@ -500,29 +511,31 @@ static int arv_check(void *st, int probe, sl_err *err)
     return SL_OK;
 }
 
+/* "aravis" and "fake" differ only in which devices they open. */
+#define ARVCAM_SHARED_OPS                                                    \
+    .close = arv_close, .info = arv_info, .caps = arv_caps,                  \
+    .get_config = arv_get_config, .set_roi = arv_set_roi,                    \
+    .set_binning = arv_set_binning, .set_pixel_format = arv_set_pixel_format, \
+    .set_exposure_us = arv_set_exposure_us, .set_gain_db = arv_set_gain_db,  \
+    .set_frame_rate_hz = arv_set_frame_rate_hz, .set_trigger = arv_set_trigger, \
+    .trigger_software = arv_trigger_software, .start = arvcam_start,         \
+    .pop = arvcam_pop, .stop = arvcam_stop, .stats = arvcam_stats,           \
+    .reconnect = arv_reconnect, .set_heartbeat_ms = arv_set_heartbeat_ms,    \
+    .get_heartbeat_ms = arv_get_heartbeat_ms, .check = arv_check
+
 const camera_backend camera_backend_aravis = {
     .name = "aravis",
     .summary = "GigE Vision and USB3 Vision cameras (Aravis 0.8)",
     .list = arv_list,
     .open = arv_open,
-    .close = arv_close,
-    .info = arv_info,
-    .caps = arv_caps,
-    .get_config = arv_get_config,
-    .set_roi = arv_set_roi,
-    .set_binning = arv_set_binning,
-    .set_pixel_format = arv_set_pixel_format,
-    .set_exposure_us = arv_set_exposure_us,
-    .set_gain_db = arv_set_gain_db,
-    .set_frame_rate_hz = arv_set_frame_rate_hz,
-    .set_trigger = arv_set_trigger,
-    .trigger_software = arv_trigger_software,
-    .start = arvcam_start,
-    .pop = arvcam_pop,
-    .stop = arvcam_stop,
-    .stats = arvcam_stats,
-    .reconnect = arv_reconnect,
-    .set_heartbeat_ms = arv_set_heartbeat_ms,
-    .get_heartbeat_ms = arv_get_heartbeat_ms,
-    .check = arv_check,
+    ARVCAM_SHARED_OPS,
+};
+
+const camera_backend camera_backend_fake = {
+    .name = "fake",
+    .summary = "Aravis's in-process fake camera (tests; no network)",
+    .list = arvcam_fake_list,
+    .open = arvcam_fake_open,
+    .set_source = arvcam_set_source,
+    ARVCAM_SHARED_OPS,
 };

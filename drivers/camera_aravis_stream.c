@@ -55,6 +55,7 @@ int arvcam_start(void *st, int nbuffers, sl_err *err)
                      "frame-retention", (guint)FRAME_RETENTION_US, NULL);
     for (int i = 0; i < nbuffers; i++)
         arv_stream_push_buffer(a->stream, arv_buffer_new_allocate(payload));
+    a->payload = payload;
     arv_camera_start_acquisition(a->cam, &ge);
     if (ge) {
         arvcam_drop_stream(a);
@@ -144,6 +145,10 @@ static int copy_pixels(arvcam *a, ArvBuffer *b, camera_frame *out, sl_err *err)
     }
     size_t size = 0, npx = (size_t)out->width * (size_t)out->height;
     const unsigned char *p = arv_buffer_get_image_data(b, &size);
+    /* Aravis's fake stream fills the whole buffer but leaves its received
+     * size 0 (0.8.26): its size is then the payload allocated at start. */
+    if (p && size == 0 && ARV_IS_FAKE_DEVICE(a->dev))
+        size = a->payload;
     if (!p || size < npx * (size_t)bpp) {
         out->status = CAMERA_FRAME_SIZE_MISMATCH;
         return SL_OK;

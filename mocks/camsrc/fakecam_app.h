@@ -26,6 +26,9 @@ int renderer_new(renderer **out, const fakecam_model *m, mask **masks,
 void renderer_free(renderer *r);
 /* The fake camera whose registers (ROI, binning) the callback reads. */
 void renderer_attach(renderer *r, ArvFakeCamera *fake);
+/* A fresh fake camera as the mocks start it: the model's sensor size, the
+ * whole sensor as ROI, Mono16.  The ExposureTime register is returned. */
+guint32 renderer_init_camera(const renderer *r, ArvFakeCamera *fake);
 /* Set the beam (main thread); the next frame uses it. */
 void renderer_set_beam(renderer *r, const beam *b);
 /* Make the simulator of the current beam now rather than on the first

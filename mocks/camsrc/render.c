@@ -97,6 +97,19 @@ void renderer_attach(renderer *r, ArvFakeCamera *fake)
     r->fake = fake;
 }
 
+guint32 renderer_init_camera(const renderer *r, ArvFakeCamera *fake)
+{
+    guint32 w = (guint32)r->m.sensor_w, h = (guint32)r->m.sensor_h, exposure_us = 0;
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, w);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, h);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, w);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, h);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
+                                   ARV_PIXEL_FORMAT_MONO_16);
+    arv_fake_camera_read_register(fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US, &exposure_us);
+    return exposure_us;
+}
+
 void renderer_set_beam(renderer *r, const beam *b)
 {
     g_mutex_lock(&r->beam_lock);

@@ -184,17 +184,10 @@ static int serve(app *a, const fakecam_model *m, mask **masks, int nmasks)
     }
     ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera(gv);
     /* The sensor is --size; the ROI starts as the whole sensor. */
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, (guint32)m->sensor_w);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, (guint32)m->sensor_h);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, (guint32)m->sensor_w);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, (guint32)m->sensor_h);
-    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
-                                   ARV_PIXEL_FORMAT_MONO_16);
+    guint32 exposure_us = renderer_init_camera(a->r, fake);
     g_object_set(gv, "gvsp-lost-ratio", a->o.lost_ratio, NULL);
     renderer_attach(a->r, fake);
     arv_fake_camera_set_fill_pattern(fake, renderer_fill, a->r);
-    guint32 exposure_us = 0;
-    arv_fake_camera_read_register(fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US, &exposure_us);
     if (renderer_prepare(a->r, exposure_us, 0, &e) != SL_OK) {
         fprintf(stderr, "specklab-fake-camera: %s\n", e.msg);
         goto free_gv;

@@ -71,22 +71,29 @@ static long truth_diff(truth *tr, uint64_t frame_id, const uint16_t *pix)
     return bad;
 }
 
-/* Our driver on a camera mock: open target, Mono16, the ROI, fps,
- * started with nbuf buffers; -1 with the message in err. */
-static int camtruth_open(camera **c, const char *target, double fps, int nbuf, char *err,
+/* Mono16, the ROI, fps, started with nbuf buffers; -1 with the message
+ * in err. */
+static inline int camtruth_configure(camera *c, double fps, int nbuf, char *err, size_t n)
+{
+    int rc;
+    if ((rc = camera_set_pixel_format(c, CAMERA_PIX_MONO16)) == SL_OK &&
+        (rc = camera_set_roi(c, ROI_X, ROI_Y, ROI_W, ROI_H)) == SL_OK &&
+        (rc = camera_set_frame_rate_hz(c, fps)) == SL_OK)
+        rc = camera_start(c, nbuf);
+    if (rc != SL_OK)
+        return snprintf(err, n, "%s", camera_errmsg(c)), -1;
+    return 0;
+}
+
+/* Our driver on a camera mock: open target and configure it. */
+static inline int camtruth_open(camera **c, const char *target, double fps, int nbuf, char *err,
                          size_t n)
 {
     sl_err e = {0};
     int rc = camera_open(c, "aravis", target, &e);
     if (rc != SL_OK)
         return snprintf(err, n, "%s", e.msg), -1;
-    if ((rc = camera_set_pixel_format(*c, CAMERA_PIX_MONO16)) == SL_OK &&
-        (rc = camera_set_roi(*c, ROI_X, ROI_Y, ROI_W, ROI_H)) == SL_OK &&
-        (rc = camera_set_frame_rate_hz(*c, fps)) == SL_OK)
-        rc = camera_start(*c, nbuf);
-    if (rc != SL_OK)
-        return snprintf(err, n, "%s", camera_errmsg(*c)), -1;
-    return 0;
+    return camtruth_configure(*c, fps, nbuf, err, n);
 }
 
 /* Pop into frame slot k of pix (NPX pixels a slot); the driver's code,

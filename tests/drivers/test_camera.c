@@ -1,6 +1,9 @@
 /* test_camera.c - drivers/camera (Aravis backend), the fake speckle
  * camera and `specklab camera grab`, against fake GigE Vision cameras on
  * loopback: bin/specklab-fake-camera (ours) and arv-fake-gv-camera-0.8.
+ * The network tier: what needs the wire (packet loss, a killed camera,
+ * discovery, the heartbeat); test_camera_fake checks the same frames on
+ * the in-process fake without a network.
  *
  * Namespaces: GVCP's port 3956 is fixed, so every test runs in a forked
  * child with a private network namespace (unshare CLONE_NEWNET, with

@@ -1,18 +1,26 @@
 /* daemon_fx.h - the fixture of tests/integration/test_daemon*.c: a bench
- * (fake stage, fake camera, specklabd) in a private network namespace,
- * and a small json-glib client of daemon/PROTOCOL.md.
+ * (fake stage, fake camera, specklabd) and a small json-glib client of
+ * daemon/PROTOCOL.md.
  *
- * Namespaces: GVCP's port 3956 is fixed, so each test body runs in a
- * forked child that unshares its network namespace (CLONE_NEWNET; with
- * CLONE_NEWUSER when not root) and brings its loopback up; everything it
- * starts shares that private loopback and dies with it (PR_SET_PDEATHSIG).
- * The parent reads the child's verdict through a pipe with a deadline.
- * GLib is used only in the children.
+ * Camera, two tiers.  By default the camera is Aravis's in-process fake
+ * inside specklabd ([camera] backend=fake, address Fake_1), its pixels
+ * from bin/specklab-fake-source.so ([camera] source: the simulator of
+ * bin/specklab-fake-camera, following the fake stage's wheels); the stage
+ * listens on a port the kernel picks and the socket is in the test's own
+ * directory, so such a test needs no namespace and runs beside others.
+ * BENCH_TEST runs the body in a forked child (fx_in_child).  The network
+ * tier, BENCH_NET_TEST, puts bin/specklab-fake-camera (GigE Vision on
+ * loopback: GVCP's port 3956 is fixed) or the U3V mock in a private
+ * network namespace (fx_in_netns: CLONE_NEWNET, with CLONE_NEWUSER when
+ * not root; everything started shares its loopback and dies with it):
+ * the tests that kill, stall or restart the camera process, drop its
+ * packets or its controller.
  *
  * Binaries: $SL_BIN_DIR (else $SL_BIN, else BUILD/../bin next to this test,
- * else ./bin) must hold specklabd, specklab-fake-stage and
- * specklab-fake-camera.  Every start is synchronised on the program's
- * READY line, with a deadline; nothing sleeps as synchronisation.
+ * else ./bin) must hold specklabd, specklab-fake-stage,
+ * specklab-fake-source.so and (network tier) specklab-fake-camera.  Every
+ * start is synchronised on the program's READY line, with a deadline;
+ * nothing sleeps as synchronisation.
  *
  * Static functions: include once per test binary.
  */
@@ -70,6 +78,11 @@ typedef struct bench {
     char stage_tty[96];
     void (*daemon_pre)(void *);   /* e.g. limits, before exec */
     void *daemon_pre_arg;
+    int cam_gige;                 /* 1: the camera is bin/specklab-fake-camera (GigE
+                                   * Vision on loopback: network tier); 0 with
+                                   * cam_u3v 0: the daemon's in-process fake */
+    char cam_extra[128];          /* more simulator flags (in-process fake) */
+    char ready[512];              /* the daemon's READY line */
     int cam_u3v;                  /* 1: the camera is bin/specklab-fake-u3v (seed 5,
                                    * screen slot 1 always in its beam) and the daemon runs
                                    * under the umockdev preload on its testbed */
@@ -147,10 +160,14 @@ static inline int bench_start_u3v(bench *b)
     return fx_u3v_start(&b->u3v, extra);
 }
 
+/* The in-process fake needs no process: the daemon opens it (its
+ * configuration, bench_write_config). */
 static inline int bench_start_camera(bench *b)
 {
     if (b->cam_u3v)
         return bench_start_u3v(b);
+    if (!b->cam_gige)
+        return 0;
     char bin[PATH_MAX], line[256], stage[64];
     snprintf(stage, sizeof stage, "127.0.0.1:%d", b->port);
     char *argv[] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
@@ -171,11 +188,26 @@ static inline int bench_start_camera(bench *b)
     return 0;
 }
 
-/* The configuration: the bench's stage port, data under the temporary
- * directory, 100 fps, plus extra text (whole "[group]\nkey=value" lines,
- * later keys win). */
+/* [camera] for the in-process fake: the simulator with the GigE mock's
+ * flags of bench_start_camera, polling the bench's stage. */
+static inline void bench_fake_camera_conf(const bench *b, char *out, size_t n)
+{
+    char lib[PATH_MAX];
+    fx_bin(lib, sizeof lib, "specklab-fake-source.so");
+    snprintf(out, n, "backend=fake\naddress=Fake_1\nsource=%s\nsource_args=--size %s "
+             "--stage 127.0.0.1:%d --stage-poll-ms 20 --seed 5%s%s%s%s %s\n", lib, b->cam_size,
+             b->port, b->cam_masks[0] ? " --mask-slots " : "", b->cam_masks,
+             b->cam_dm[0] ? " --dm-mag " : "", b->cam_dm, b->cam_extra);
+}
+
+/* The configuration: the bench's camera and stage port, data under the
+ * temporary directory, 100 fps, plus extra text (whole
+ * "[group]\nkey=value" lines, later keys win). */
 static inline int bench_write_config(bench *b, const char *extra)
 {
+    char cam[PATH_MAX + 512] = "";
+    if (!b->cam_gige && !b->cam_u3v)
+        bench_fake_camera_conf(b, cam, sizeof cam);
     FILE *f = fopen(b->conf, "w");
     if (!f)
         return -1;
@@ -184,31 +216,33 @@ static inline int bench_write_config(bench *b, const char *extra)
         snprintf(stage, sizeof stage, "backend=rtu\ndevice=%s\nbaud=19200\n", b->stage_tty);
     else
         snprintf(stage, sizeof stage, "address=127.0.0.1:%d\n", b->port);
-    fprintf(f, "[camera]\nframe_rate_hz=100\nlost_timeout_s=2\n"
+    fprintf(f, "[camera]\n%sframe_rate_hz=100\nlost_timeout_s=2\n"
                "[stage]\n%ssettle_ms=100\nmove_timeout_ms=5000\n"
                "[paths]\ndata_dir=%s\n[daemon]\nsocket=%s\n%s\n",
-            stage, b->data, b->sock, extra ? extra : "");
+            cam, stage, b->data, b->sock, extra ? extra : "");
     return fclose(f) == 0 ? 0 : -1;
 }
 
+/* The READY line is kept in b->ready (the web page's URL, if any). */
 static inline int bench_start_daemon(bench *b)
 {
-    char bin[PATH_MAX], line[512];
+    char bin[PATH_MAX];
     char *argv[] = {bin, "--config", b->conf, "--foreground", NULL};
     fx_bin(bin, sizeof bin, "specklabd");
     if (fx_spawn(&b->daemon, argv, b->dlog, b->daemon_pre, b->daemon_pre_arg) != 0 ||
-        fx_wait_ready(&b->daemon, line, sizeof line, 20) != 0)
+        fx_wait_ready(&b->daemon, b->ready, sizeof b->ready, 20) != 0)
         return -1;
     return 0;
 }
 
-/* Stage, camera, config (extra), daemon; setup (may be NULL) chooses
- * what the bench is made of, after bench_init. */
-static inline int bench_up(bench *b, void (*setup)(bench *), const char *const *stage_extra,
-                           const char *conf_extra)
+/* Stage, camera, config (extra), daemon; gige: the network tier's camera;
+ * setup (may be NULL) chooses what the bench is made of, after that. */
+static inline int bench_up(bench *b, int gige, void (*setup)(bench *),
+                           const char *const *stage_extra, const char *conf_extra)
 {
     if (bench_init(b) != 0)
         return -1;
+    b->cam_gige = gige;
     if (setup)
         setup(b);
     return bench_start_stage(b, stage_extra) || bench_start_camera(b) ||
@@ -412,19 +446,29 @@ static inline void bench_check_stop(tc *t, bench *b)
 }
 
 /* A test with a bench up (stage flags stage_extra, a NULL-terminated
- * string array or NULL; config text conf_extra) in its own namespace,
- * torn down whatever the body's CHECKs do; the daemon's log is printed
- * when the test fails. */
+ * string array or NULL; config text conf_extra), the in-process fake
+ * camera, in a forked child; torn down whatever the body's CHECKs do; the
+ * daemon's log is printed when the test fails. */
 #define BENCH_TEST(name, limit_s, stage_extra, conf_extra)                    \
-    BENCH_TEST_WITH(name, limit_s, NULL, stage_extra, conf_extra)
+    BENCH_TEST_TIER(name, limit_s, 0, NULL, stage_extra, conf_extra)
 
 /* The same on a bench that setup(bench *) changed after bench_init. */
 #define BENCH_TEST_WITH(name, limit_s, setup, stage_extra, conf_extra)       \
+    BENCH_TEST_TIER(name, limit_s, 0, setup, stage_extra, conf_extra)
+
+/* The network tier: the GigE mock (or, by setup, the U3V mock) in a
+ * private network namespace. */
+#define BENCH_NET_TEST(name, limit_s, stage_extra, conf_extra)                \
+    BENCH_TEST_TIER(name, limit_s, 1, NULL, stage_extra, conf_extra)
+#define BENCH_NET_TEST_WITH(name, limit_s, setup, stage_extra, conf_extra)   \
+    BENCH_TEST_TIER(name, limit_s, 1, setup, stage_extra, conf_extra)
+
+#define BENCH_TEST_TIER(name, limit_s, gige, setup, stage_extra, conf_extra) \
     static void name##_body(tc *t, bench *b);                                 \
     static void name##_run(tc *t)                                             \
     {                                                                         \
         bench b_;                                                             \
-        if (bench_up(&b_, setup, stage_extra, conf_extra) != 0) {             \
+        if (bench_up(&b_, gige, setup, stage_extra, conf_extra) != 0) {       \
             tc_note(t, 0, __FILE__, __LINE__, "bench_up", "bench did not start " \
                     "(stage, camera or daemon; SL_BIN_DIR?)");                \
             bench_down(&b_, 1);                                               \
@@ -434,7 +478,7 @@ static inline void bench_check_stop(tc *t, bench *b)
         bench_check_stop(t, &b_);                                             \
         bench_down(&b_, t->failed);                                           \
     }                                                                         \
-    TEST(name) { fx_in_netns(t, name##_run, limit_s); }                       \
+    TEST(name) { fx_run_child(t, name##_run, limit_s, gige); }                \
     static void name##_body(tc *t, bench *b)
 
 #endif

@@ -25,8 +25,18 @@ static inline const char *mx_str(const char *s)
 
 /* ---- a bench with camera flags ------------------------------------------------- */
 
+/* The camera with extra flags: the in-process fake's simulator takes
+ * them in its source_args (bench_write_config), the GigE mock (network
+ * tier) on its command line. */
 static inline int mx_start_camera(bench *b, const char *const *extra)
 {
+    if (!b->cam_gige) {
+        size_t len = 0;
+        for (int i = 0; extra && extra[i]; i++)
+            len += (size_t)snprintf(b->cam_extra + len, len < sizeof b->cam_extra ?
+                                    sizeof b->cam_extra - len : 0, " %s", extra[i]);
+        return len < sizeof b->cam_extra ? 0 : -1;
+    }
     char bin[PATH_MAX], line[256], stage[64];
     char *argv[24] = {bin, "--size", b->cam_size, "--stage", stage, "--stage-poll-ms", "20",
                       "--seed", "5", "-q"};
@@ -42,13 +52,20 @@ static inline int mx_start_camera(bench *b, const char *const *extra)
     return 0;
 }
 
-/* BENCH_TEST with flags for the fake camera too. */
+/* BENCH_TEST with flags for the fake camera too (in-process fake). */
 #define MATRIX_TEST(name, limit_s, stage_extra, cam_extra, conf_extra)          \
+    MATRIX_TEST_TIER(name, limit_s, 0, stage_extra, cam_extra, conf_extra)
+/* The network tier: flags of the GigE mock (--lost-ratio). */
+#define MATRIX_NET_TEST(name, limit_s, stage_extra, cam_extra, conf_extra)      \
+    MATRIX_TEST_TIER(name, limit_s, 1, stage_extra, cam_extra, conf_extra)
+
+#define MATRIX_TEST_TIER(name, limit_s, gige, stage_extra, cam_extra, conf_extra) \
     static void name##_body(tc *t, bench *b);                                 \
     static void name##_run(tc *t)                                             \
     {                                                                         \
         bench b_;                                                             \
-        if (bench_init(&b_) || bench_start_stage(&b_, stage_extra) ||         \
+        if (bench_init(&b_) || ((b_.cam_gige = gige), 0) ||                   \
+            bench_start_stage(&b_, stage_extra) ||                            \
             mx_start_camera(&b_, cam_extra) || bench_write_config(&b_, conf_extra) || \
             bench_start_daemon(&b_)) {                                        \
             tc_note(t, 0, __FILE__, __LINE__, "bench", "bench did not start"); \
@@ -59,7 +76,7 @@ static inline int mx_start_camera(bench *b, const char *const *extra)
         bench_check_stop(t, &b_);                                             \
         bench_down(&b_, t->failed);                                           \
     }                                                                         \
-    TEST(name) { fx_in_netns(t, name##_run, limit_s); }                       \
+    TEST(name) { fx_run_child(t, name##_run, limit_s, gige); }                \
     static void name##_body(tc *t, bench *b)
 
 static inline int mx_kill_restart(bench *b)

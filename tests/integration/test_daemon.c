@@ -1,6 +1,8 @@
 /* test_daemon.c - specklabd end to end on a simulated bench (fake stage,
  * fake camera, daemon; daemon_fx.h): a full run, the queue and two
- * clients at once, bad requests, and a clean stop mid-run.
+ * clients at once, bad requests, and a clean stop mid-run; a camera
+ * source is refused on a backend of real cameras, and a missing one is
+ * named in `status`.
  *
  * Truth: the fake camera renders a binary of separation 0.7 arcsec at PA
  * 30 deg, dm 1, at its default plate scale, which is also the daemon's
@@ -425,5 +427,58 @@ BENCH_TEST(sigterm_mid_run, 90, NULL, NULL)
     CHECK(fx_sha256(file, hex) == 0 && !strcmp(hex, sha), "sha256 %s vs %s", sha, hex);
 }
 
+/* [camera] source on the aravis backend: the daemon does not start
+ * (exit 2) and names the key; nothing is loaded into a real camera's
+ * daemon. */
+static void source_refused_run(tc *t)
+{
+    bench b;
+    char bin[PATH_MAX], out[256];
+    CHECK(bench_init(&b) == 0, "bench_init");
+    FILE *f = fopen(b.conf, "w");
+    if (f) {
+        fprintf(f, "[camera]\nbackend=aravis\nsource=%s/x.so\n[paths]\ndata_dir=%s\n"
+                   "[daemon]\nsocket=%s\n", b.dir, b.data, b.sock);
+        fclose(f);
+    }
+    fx_bin(bin, sizeof bin, "specklabd");
+    char *argv[] = {bin, "--config", b.conf, "--foreground", NULL};
+    int st = f ? fx_run(argv, b.dlog, NULL, NULL, out, sizeof out, 20) : -1;
+    gchar *log = NULL;
+    g_file_get_contents(b.dlog, &log, NULL, NULL);
+    int named = has(log, "[camera] source") && has(log, "only the fake backend");
+    g_free(log);
+    bench_down(&b, st != 2 || !named);
+    CHECK(st == 2 && named, "source with backend=aravis: exit %d, named %d", st, named);
+}
+
+TEST(source_needs_the_fake_backend) { fx_in_child(t, source_refused_run, 30); }
+
+/* The fake backend with a source that refuses its arguments: the daemon
+ * runs, and `status` says the camera is not connected, with the source's
+ * own message. */
+static void no_source_file(bench *b)
+{
+    snprintf(b->cam_extra, sizeof b->cam_extra, "--size");   /* a flag without its value */
+}
+
+BENCH_TEST_WITH(source_errors_named, 60, no_source_file, NULL, NULL)
+{
+    dc *c = bench_client(b);
+    CHECK(c, "cannot connect");
+    JsonNode *r = NULL;
+    double end = fx_now() + 10;
+    while (fx_now() < end) {
+        r = keep(b, dc_call(c, "status", NULL, 5));
+        if (js(r, "result.camera.error"))
+            break;
+        fx_nap_ms(50);
+    }
+    const char *why = r ? js(r, "result.camera.error") : NULL;
+    CHECK(has(why, "fake camera source") && has(why, "Missing argument for --size"),
+          "status names no source error: %s", jtext(r));
+}
+
 TC_MAIN(TC_CASE(full_run), TC_CASE(queue_and_two_clients), TC_CASE(bad_requests),
-        TC_CASE(sigterm_mid_run))
+        TC_CASE(sigterm_mid_run), TC_CASE(source_needs_the_fake_backend),
+        TC_CASE(source_errors_named))

@@ -156,7 +156,7 @@ static void catalogued_dark_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(catalogued_dark) { fx_in_netns(t, catalogued_dark_run, 240); }
+TEST(catalogued_dark) { fx_in_child(t, catalogued_dark_run, 240); }
 
 /* A dark file of the bench's frames: bias only (64x64, the fixture's). */
 static int write_dark(const char *path, double level)
@@ -222,7 +222,7 @@ static void configured_files_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(configured_files) { fx_in_netns(t, configured_files_run, 240); }
+TEST(configured_files) { fx_in_child(t, configured_files_run, 240); }
 
 /* Restart the fake camera with dm (a string; "" its default). */
 static int camera_with_dm(bench *b, dc *c, const char *dm)
@@ -255,7 +255,7 @@ static int cli_ref_binary(const char *cube, const char *ref, const char *dir, do
     return isfinite(m[0]) ? 0 : -1;
 }
 
-BENCH_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
+BENCH_NET_TEST(calibrator_reference, 240, NULL, "[daemon]\nreconstruct=none\n")
 {
     dc *c = bench_client(b);
     char cal[40], sci[40], other[40];

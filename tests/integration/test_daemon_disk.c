@@ -118,7 +118,7 @@ static void frames_past_cube_end_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(frames_past_cube_end) { fx_in_netns(t, frames_past_cube_end_run, 120); }
+TEST(frames_past_cube_end) { fx_in_child(t, frames_past_cube_end_run, 120); }
 
 /* ---- the catalogue's disk fills -------------------------------------------- */
 
@@ -177,7 +177,7 @@ static void catalog_on_full_disk_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(catalog_on_full_disk) { fx_in_netns(t, catalog_on_full_disk_run, 150); }
+TEST(catalog_on_full_disk) { fx_in_child(t, catalog_on_full_disk_run, 150); }
 
 /* The catalogue (and its reserve) on a tmpfs of its own, filled once the
  * run acquires: every catalogue write from there needs room. */
@@ -236,7 +236,7 @@ static void catalog_disk_fills_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(catalog_disk_fills) { fx_in_netns(t, catalog_disk_fills_run, 150); }
+TEST(catalog_disk_fills) { fx_in_child(t, catalog_disk_fills_run, 150); }
 
 TC_MAIN(TC_CASE(frames_past_cube_end), TC_CASE(catalog_on_full_disk),
         TC_CASE(catalog_disk_fills))

@@ -72,7 +72,7 @@ static int run_matches_disk(tc *t, bench *b, const char *uuid, catalog_state wan
     return ok ? 0 : -1;
 }
 
-BENCH_TEST(camera_vanishes, 120, NULL, NULL)
+BENCH_NET_TEST(camera_vanishes, 120, NULL, NULL)
 {
     dc *c = bench_client(b);
     char uuid[40], file[400];
@@ -268,7 +268,7 @@ static void disk_full_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(disk_full) { fx_in_netns(t, disk_full_run, 120); }
+TEST(disk_full) { fx_in_child(t, disk_full_run, 120); }
 
 /* In a forked child: become uid 65534 with gid, connect, and (when
  * served) ask for status.  Exit 0 when connected and answered, else the

@@ -293,7 +293,7 @@ static const char *const loss_10[] = {"--lost-ratio", "0.10", NULL};
 
 /* 300 frames of ~8 packets: at 1 % loss about 8 % of frames are hit, so
  * a run without one (0.92^300) does not happen. */
-MATRIX_TEST(packet_loss_1pct, 90, NULL, loss_1, NULL)
+MATRIX_NET_TEST(packet_loss_1pct, 90, NULL, loss_1, NULL)
 {
     lossy_run(t, b, 300, 1);
 }
@@ -301,12 +301,12 @@ MATRIX_TEST(packet_loss_1pct, 90, NULL, loss_1, NULL)
 /* About two frames in three are damaged at 10 %: more than the default
  * tolerance, max(100, frames), would allow for 60 good ones, so this
  * bench tolerates any number (packet_loss_over_limit tests the bound). */
-MATRIX_TEST(packet_loss_10pct, 90, NULL, loss_10, "[camera]\nmax_failed_frames=100000\n")
+MATRIX_NET_TEST(packet_loss_10pct, 90, NULL, loss_10, "[camera]\nmax_failed_frames=100000\n")
 {
     lossy_run(t, b, 60, 1);
 }
 
-MATRIX_TEST(packet_loss_over_limit, 90, NULL, loss_10, "[camera]\nmax_failed_frames=3\n")
+MATRIX_NET_TEST(packet_loss_over_limit, 90, NULL, loss_10, "[camera]\nmax_failed_frames=3\n")
 {
     dc *c = bench_client(b);
     char uuid[40];
@@ -465,7 +465,7 @@ BENCH_TEST(stage_gone_during_move, 90, slow_wheels, "[stage]\nmove_timeout_ms=15
 
 /* ---- the camera ----------------------------------------------------------------- */
 
-BENCH_TEST(camera_control_lost, 90, NULL, "[camera]\nlost_timeout_s=10\n")
+BENCH_NET_TEST(camera_control_lost, 90, NULL, "[camera]\nlost_timeout_s=10\n")
 {
     dc *c = bench_client(b);
     char uuid[40];
@@ -493,7 +493,7 @@ static int camera_is(JsonNode *r, const void *arg)
     return m && JSON_NODE_HOLDS_VALUE(m) && json_node_get_boolean(m) == *(const int *)arg;
 }
 
-BENCH_TEST(camera_restart_while_idle, 150, NULL, NULL)
+BENCH_NET_TEST(camera_restart_while_idle, 150, NULL, NULL)
 {
     dc *c = bench_client(b);
     const int yes = 1, no = 0;

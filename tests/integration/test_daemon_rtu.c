@@ -88,6 +88,6 @@ static void binary_bench_over_rtu_run(tc *t)
     bench_down(&b, t->failed);
 }
 
-TEST(binary_bench_over_rtu) { fx_in_netns(t, binary_bench_over_rtu_run, 180); }
+TEST(binary_bench_over_rtu) { fx_in_child(t, binary_bench_over_rtu_run, 180); }
 
 TC_MAIN(TC_CASE(binary_bench_over_rtu))

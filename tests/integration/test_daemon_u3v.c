@@ -21,7 +21,7 @@ static void u3v_bench(bench *b)
 
 /* 200 frames through the daemon: done, catalogue = cube = FRAMES, every
  * frame the simulator's, no id gap. */
-BENCH_TEST_WITH(u3v_run_200, 120, u3v_bench, NULL, U3V_CONF)
+BENCH_NET_TEST_WITH(u3v_run_200, 120, u3v_bench, NULL, U3V_CONF)
 {
     dc *c = bench_client(b);
     CHECK(c, "cannot connect to %s", b->sock);
@@ -86,7 +86,7 @@ static int devices_has_camera(bench *b)
  * simulator's pixels); the daemon and `specklab devices` show it gone.
  * Plugged back: the daemon reopens it by itself and the next run is
  * done, without a restart. */
-BENCH_TEST_WITH(u3v_unplug_mid_run, 120, u3v_bench, NULL, U3V_CONF)
+BENCH_NET_TEST_WITH(u3v_unplug_mid_run, 120, u3v_bench, NULL, U3V_CONF)
 {
     dc *c = bench_client(b);
     CHECK(c, "cannot connect to %s", b->sock);

@@ -324,6 +324,7 @@ static int bench_start(soak *s)
     const char *more = getenv("SOAK_CONF_EXTRA");
     if (bench_init(b) != 0)
         return -1;
+    b->cam_gige = 1;   /* the bench as deployed: GigE on loopback */
     snprintf(b->cam_size, sizeof b->cam_size, "%s", s->o.size);
     /* Later keys win over the fixture's 100 Hz; a 5 s loss timeout stays
      * well clear of a loaded machine's scheduling stalls. */

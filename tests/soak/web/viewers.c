@@ -236,6 +236,7 @@ static int start_bench(bench *b, const plan *pl, char *why, size_t n)
              "[web]\nlisten=127.0.0.1:%d\nmax_connections=64\n", pl->rate_hz, PORT);
     if (bench_init(b) != 0)
         return snprintf(why, n, "bench_init"), -1;
+    b->cam_gige = 1;   /* the camera's CPU is measured: a process of its own */
     snprintf(b->cam_size, sizeof b->cam_size, "%s", pl->size);
     if (bench_start_stage(b, NULL) || bench_start_camera(b) || bench_write_config(b, extra) ||
         bench_start_daemon(b))

@@ -112,9 +112,9 @@ static int alloc_buffers(bispec *b)
     int snr = o->weight == PHASOR_WEIGHT_SNR || o->refine_weight == PHASOR_WEIGHT_SNR;
     int ph = o->adu_per_photon > 0, win = o->window != POWSPEC_WIN_NONE;
     void *acc = NULL, *acc2 = NULL;
-    /* The batch's frames and spectra, each slot 64-byte aligned as the
+    /* The frame slots and their spectra, each 64-byte aligned as the
      * FFT plans were made for (the first slot). */
-    size_t kb = (size_t)b->kb;
+    size_t ns = BISPEC_SLOTS;
     b->npad = (npx + 15) / 16 * 16;
     b->nhp = (nh + 7) / 8 * 8;
     if (!(acc = big_alloc(b, 2 * nt * asz)) || (snr && !(acc2 = big_alloc(b, nt * asz))) ||
@@ -131,10 +131,10 @@ static int alloc_buffers(bispec *b)
         {(void **)&b->known, nf, 1},
         {(void **)&b->work, phasor_work_doubles((int)nf) * sizeof(double), 1},
         {(void **)&b->win, npx * sizeof(float), win},
-        {(void **)&b->in, kb * b->npad * sizeof(float), 1},
-        {(void **)&b->out, kb * b->nhp * sizeof(fftwf_complex), 1},
-        {(void **)&b->in2, kb * b->npad * sizeof(float), ph && win},
-        {(void **)&b->out2, kb * b->nhp * sizeof(fftwf_complex), ph && win},
+        {(void **)&b->in, ns * b->npad * sizeof(float), 1},
+        {(void **)&b->out, ns * b->nhp * sizeof(fftwf_complex), 1},
+        {(void **)&b->in2, ns * b->npad * sizeof(float), ph && win},
+        {(void **)&b->out2, ns * b->nhp * sizeof(fftwf_complex), ph && win},
         {(void **)&b->cin, nh * sizeof(fftw_complex), 1},
         {(void **)&b->cout, npx * sizeof(double), 1}};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)

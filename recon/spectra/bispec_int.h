@@ -13,6 +13,9 @@
 /* The kernel's vector: BISPEC_LANES frames of one leg (64 bytes, one
  * AVX-512 register, two AVX2 ones); a batch is kb / BISPEC_LANES of them. */
 #define BISPEC_LANES 16
+/* Frames transformed together (bispec_add): one per thread at a time,
+ * and their slots (in, out) cost 12 w h bytes each. */
+#define BISPEC_SLOTS 16
 typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));
 
 struct bispec {
@@ -48,9 +51,10 @@ struct bispec {
     double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
     double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
     double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
-    float *win, *in, *in2;   /* kb frames, npad floats apart */
+    float *win, *in, *in2;   /* BISPEC_SLOTS frames, npad floats apart */
     fftwf_complex *out, *out2; /* their transforms, nhp apart */
     size_t npad, nhp;
+    int nspread;             /* frames of the batch already in fb */
     fftwf_plan plan, plan2;
     double *phi, *work;
     unsigned char *known;

@@ -110,13 +110,13 @@ static void kjob(void *ctx, int tid, int n)
     kernel(b, b->trange[tid], b->trange[tid + 1]);
 }
 
-/* tpool job: thread tid transforms frames tid, tid + n, ... of the batch
- * (fftwf_execute_dft_r2c on the handle's plans: every frame slot has the
+/* tpool job: thread tid transforms the staged frames' slots tid, tid + n,
+ * ... (fftwf_execute_dft_r2c on the handle's plans: every slot has the
  * planned arrays' alignment). */
 static void fft_job(void *ctx, int tid, int n)
 {
     bispec *b = ctx;
-    for (int k = tid; k < b->nb; k += n) {
+    for (int k = tid; k < b->nb - b->nspread; k += n) {
         fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
         if (b->plan2)
             fftwf_execute_dft_r2c(b->plan2, b->in2 + (size_t)k * b->npad,
@@ -124,14 +124,14 @@ static void fft_job(void *ctx, int tid, int n)
     }
 }
 
-/* Frequency j of the batch's spectra into its + and - legs' lanes, and
- * its sums over the batch's frames, in frame order. */
+/* Frequency j of the staged frames' spectra into its + and - legs'
+ * lanes (nspread..nb-1), and into its sums, in frame order. */
 static void spread_freq(bispec *b, int j)
 {
     size_t K = (size_t)b->kb, o = (size_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
     float *pj = b->fb + (size_t)j * 2 * K, *mj = pj + (size_t)b->nf * 2 * K;
-    for (int s = 0; s < b->nb; s++) {
-        const fftwf_complex *f = b->out + (size_t)s * b->nhp;
+    for (int s = b->nspread; s < b->nb; s++) {
+        const fftwf_complex *f = b->out + (size_t)(s - b->nspread) * b->nhp;
         float re = crealf(f[o]), im = cimagf(f[o]);
         pj[s] = re;
         pj[K + s] = im;
@@ -143,7 +143,7 @@ static void spread_freq(bispec *b, int j)
             continue;
         /* X = F_w conj(F_{w^2}); without a window that is |F|^2. */
         if (b->out2) {
-            const fftwf_complex *f2 = b->out2 + (size_t)s * b->nhp;
+            const fftwf_complex *f2 = b->out2 + (size_t)(s - b->nspread) * b->nhp;
             double r2 = crealf(f2[o]), i2 = cimagf(f2[o]);
             b->xsum[2 * j] += re * r2 + im * i2;
             b->xsum[2 * j + 1] += im * r2 - re * i2;
@@ -167,16 +167,25 @@ static void spread_job(void *ctx, int tid, int n)
         spread_freq(b, j);
 }
 
-/* Transform the batch's frames and spread them over the legs (both on
- * the handle's threads: per frame, then per frequency), then run the
- * kernel over it (the lanes of a partial batch up to the next vector
- * zeroed: they add nothing; vectors beyond are skipped). */
+/* Transform the staged frames and spread them over the legs, both on the
+ * handle's threads (per frame, then per frequency). */
+static void stage(bispec *b)
+{
+    if (b->nb == b->nspread)
+        return;
+    tpool_run(b->pool, fft_job, b);
+    tpool_run(b->pool, spread_job, b);
+    b->nspread = b->nb;
+}
+
+/* Stage what is left, then run the kernel over the batch (the lanes of a
+ * partial batch up to the next vector zeroed: they add nothing; vectors
+ * beyond are skipped). */
 void bispec_flush(bispec *b)
 {
     if (!b->nb)
         return;
-    tpool_run(b->pool, fft_job, b);
-    tpool_run(b->pool, spread_job, b);
+    stage(b);
     int used = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES * BISPEC_LANES;
     if (b->nb < used)
         for (size_t l = 0; l < 2 * (size_t)b->nf; l++)
@@ -186,23 +195,25 @@ void bispec_flush(bispec *b)
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     tpool_run(b->pool, kjob, b);
-    b->nb = 0;
+    b->nb = b->nspread = 0;
     clock_gettime(CLOCK_MONOTONIC, &t1);
     b->kernel_s += (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
 }
 
 double bispec_kernel_s(const bispec *b) { return b ? b->kernel_s : 0; }
 
-/* The frame, windowed, into the batch's next slot (and w^2 times it for
- * the photon terms); its transform waits for the batch. */
+/* The frame, windowed, into the next frame slot (and w^2 times it for the
+ * photon terms); the slots are transformed together when full
+ * (BISPEC_SLOTS of them: fewer than a batch, to spare memory). */
 int bispec_add(bispec *b, const float *frame)
 {
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
     size_t npx = (size_t)b->w * b->h;
-    float *in = b->in + (size_t)b->nb * b->npad;
-    float *in2 = b->in2 ? b->in2 + (size_t)b->nb * b->npad : NULL;
+    size_t slot = (size_t)(b->nb - b->nspread);
+    float *in = b->in + slot * b->npad;
+    float *in2 = b->in2 ? b->in2 + slot * b->npad : NULL;
     double w2 = 0, w3 = 0;
     for (size_t i = 0; i < npx; i++) {
         float v = frame[i];
@@ -223,5 +234,7 @@ int bispec_add(bispec *b, const float *frame)
     b->phased = 0;
     if (++b->nb == b->kb)
         bispec_flush(b);
+    else if (b->nb - b->nspread == BISPEC_SLOTS)
+        stage(b);
     return SL_OK;
 }

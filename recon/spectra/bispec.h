@@ -21,7 +21,8 @@
  *
  * Memory.  With T stored triples and F = |S n H| frequencies:
  *   bytes = T * (2 + A * (1 + s/2))
- *         + F * (90 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (nthreads + 1)
+ *         + F * (91 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (2 R2 + 2)
+ *         + 4 * (nthreads + 1)
  *         + 4 * (w + 2 R2 + 1) * (h + 2 R2 + 1)          [even w, h]
  *         + w*h * (8 + 4 * win + 64 * (1 + ph * win))
  *         + h * (w/2 + 1) * (16 + 128 * (1 + ph * win))

@@ -90,17 +90,22 @@ static int build_freqs(bispec *b)
     size_t box = (size_t)(2 * r2 + 1) * (2 * r2 + 1);
     b->doff = bispec_alloc(b, box * sizeof *b->doff);
     b->dleg = bispec_alloc(b, box * sizeof *b->dleg);
-    if (!b->doff || !b->dleg)
+    b->nrow = 2 * r2 + 1;
+    b->drow = bispec_alloc(b, ((size_t)b->nrow + 1) * sizeof *b->drow);
+    if (!b->doff || !b->dleg || !b->drow)
         return SL_ENOMEM;
     b->nd = 0;
     for (int dq = -r2; dq <= r2; dq++)
-        for (int dp = -r2; dp <= r2; dp++) {
+        for (int dp = -r2, first = 1; dp <= r2; dp++, first = 0) {
+            if (first)
+                b->drow[dq + r2] = (int32_t)b->nd;
             int leg = b->lut[(dq + b->qm) * b->lw + dp + b->pm];
             if (dp * dp + dq * dq <= r2 * r2 && leg > 0) {
                 b->doff[b->nd] = dq * b->lw + dp;
                 b->dleg[b->nd++] = leg;
             }
         }
+    b->drow[b->nrow] = (int32_t)b->nd;
     return SL_OK;
 }
 
@@ -212,7 +217,6 @@ static int scan_triples(bispec *b, const unsigned char *reach)
  * (u1 = u - u2 lies within R2 of u) and those stay in L2.  Any order
  * gives the same bits: each triple is summed by one thread, batch after
  * batch. */
-#define BISPEC_TILE 4
 static int cmp_key(const void *x, const void *y)
 {
     const int64_t *a = x, *b = y;
@@ -231,13 +235,16 @@ static int tile_order(bispec *b)
         key[j] = tile << 32 | j;
     }
     qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
-    for (int j = 0; j < b->nf; j++)
+    for (int j = 0; j < b->nf; j++) {
         b->order[j] = (int32_t)(key[j] & 0xffffffff);
+        b->tbeg[j] = j == 0 || key[j] >> 32 != key[j - 1] >> 32;
+    }
     free(key);
     return SL_OK;
 }
 
-/* Split order[] into nthr ranges of about equal triple counts. */
+/* Split order[] into nthr ranges of about equal triple counts, at tile
+ * starts. */
 static void split_ranges(bispec *b)
 {
     int o = 0;
@@ -245,7 +252,7 @@ static void split_ranges(bispec *b)
     b->trange[0] = 0;
     for (int r = 1; r < b->nthr; r++) {
         int64_t goal = b->nt * r / b->nthr;
-        for (; o < b->nf && done < goal; o++)
+        for (; o < b->nf && (done < goal || !b->tbeg[o]); o++)
             done += b->tstart[b->order[o] + 1] - b->tstart[b->order[o]];
         b->trange[r] = o;
     }
@@ -273,7 +280,8 @@ int bispec_build_graph(bispec *b, sl_err *err)
         return rc;
     b->trange = bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange);
     b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
-    if (!b->order || tile_order(b) != SL_OK)
+    b->tbeg = b->order ? bispec_alloc(b, (size_t)b->nf) : NULL;
+    if (!b->tbeg || tile_order(b) != SL_OK)
         return SL_ENOMEM;
     split_ranges(b);
     return SL_OK;

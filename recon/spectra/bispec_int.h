@@ -16,6 +16,8 @@
 /* Frames transformed together (bispec_add): one per thread at a time,
  * and their slots (in, out) cost 12 w h bytes each. */
 #define BISPEC_SLOTS 16
+/* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
+#define BISPEC_TILE 4
 typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));
 
 struct bispec {
@@ -28,10 +30,13 @@ struct bispec {
     int lw, lh, pm, qm;      /* lut geometry: (2pm+1) x (2qm+1) */
     int32_t *lut;
     size_t nd;
-    int32_t *doff, *dleg;    /* the u2 disk */
+    int32_t *doff, *dleg;    /* the u2 disk, row by row (dq = -R2..R2) */
+    int32_t *drow;           /* nrow + 1: first disk entry of each row */
+    int nrow;
     int64_t *tstart;
     uint16_t *tk;
     int32_t *order;          /* targets in the kernel's (tiled) order */
+    unsigned char *tbeg;     /* per order[] position: a tile starts there */
     int64_t nt;
     int nthr;
     tpool *pool;             /* nthr threads: graph, kernel, phases */

@@ -38,9 +38,14 @@ static inline float hsum(const vk *v)
  * triple, sum over the batch's frames I(u1) I(u2) conj I(u) in float
  * lanes, nch vectors of BISPEC_LANES frames, and add the sum to the
  * accumulators.  Per triple: 2 bytes of index, two gathers from small
- * tables, the u1 and u2 leg blocks (u2 near the origin, always in cache;
- * u1 near u, which the tiled target order keeps in L2), one read-modify-
- * write of the accumulator, which streams through memory once per batch.
+ * tables, the u1 and u2 leg blocks, one read-modify-write of the
+ * accumulator, which streams through memory once per batch.  Order: a
+ * tile of up to 16 neighbouring targets at a time, and within it one row
+ * of the u2 disk at a time for every target (each target's triples are
+ * sorted by disk entry, so a row is a run of them): a u2 row's legs and
+ * the band of u1 legs it pairs with across the tile (~60 and ~250 legs,
+ * 30 and 125 kB at 64 frames) are reused 16 times while in L1/L2, where
+ * a whole disk per target (2 x 1.3 MB at R2 = 28) overflowed L2.
  * Bits: lane-wise IEEE products and sums (no contraction: ISO C mode
  * compiles with -ffp-contract=off) and a fixed tree, so every clone
  * (AVX-512, AVX2, SSE2) and every thread count gives the same result.
@@ -55,36 +60,50 @@ static inline float hsum(const vk *v)
         ACC *acc = b->ACCF;                                                  \
         ACC *acc2 = ACC2F;                                                   \
         (void)acc2;                                                          \
-        for (int o = o0; o < o1; o++) {                                      \
-            int j = b->order[o];                                             \
-            vk cr[NCH], ci[NCH];                                             \
-            memcpy(cr, fb + (size_t)j * 2 * K, K * sizeof(float));           \
-            memcpy(ci, fb + (size_t)j * 2 * K + K, K * sizeof(float));       \
-            const int32_t *lut = b->lut + b->ubase[j];                       \
-            for (int64_t t = b->tstart[j]; t < b->tstart[j + 1]; t++) {      \
-                int k = b->tk[t];                                            \
-                const float *pa = fb + (size_t)lut[-b->doff[k]] * 2 * K;     \
-                const float *pb = fb + (size_t)b->dleg[k] * 2 * K;           \
-                vk sr = {0}, si = {0}, s2 = {0};                             \
-                for (int c = 0; c < nch; c++) {                              \
-                    vk ar, ai, br, bi;                                       \
-                    size_t l = (size_t)c * BISPEC_LANES;                     \
-                    memcpy(&ar, pa + l, sizeof ar);                          \
-                    memcpy(&ai, pa + K + l, sizeof ai);                      \
-                    memcpy(&br, pb + l, sizeof br);                          \
-                    memcpy(&bi, pb + K + l, sizeof bi);                      \
-                    vk abr = ar * br - ai * bi, abi = ar * bi + ai * br;     \
-                    vk xr = abr * cr[c] + abi * ci[c];                       \
-                    vk xi = abi * cr[c] - abr * ci[c];                       \
-                    sr += xr;                                                \
-                    si += xi;                                                \
-                    if (ACC2F)                                               \
-                        s2 += xr * xr + xi * xi;                             \
+        int64_t cur[BISPEC_TILE * BISPEC_TILE];                              \
+        for (int o = o0, e; o < o1; o = e) {                                 \
+            for (e = o + 1; e < o1 && !b->tbeg[e]; e++)                      \
+                ;                                                            \
+            for (int i = o; i < e; i++)                                      \
+                cur[i - o] = b->tstart[b->order[i]];                         \
+            for (int r = 0; r < b->nrow; r++) {                              \
+                int kend = b->drow[r + 1];                                   \
+                for (int i = o; i < e; i++) {                                \
+                    int j = b->order[i];                                     \
+                    int64_t t = cur[i - o], tend = b->tstart[j + 1];         \
+                    if (t == tend || b->tk[t] >= kend)                       \
+                        continue;                                            \
+                    vk cr[NCH], ci[NCH];                                     \
+                    memcpy(cr, fb + (size_t)j * 2 * K, K * sizeof(float));   \
+                    memcpy(ci, fb + (size_t)j * 2 * K + K, K * sizeof(float)); \
+                    const int32_t *lut = b->lut + b->ubase[j];               \
+                    for (; t < tend && b->tk[t] < kend; t++) {               \
+                        int k = b->tk[t];                                    \
+                        const float *pa = fb + (size_t)lut[-b->doff[k]] * 2 * K; \
+                        const float *pb = fb + (size_t)b->dleg[k] * 2 * K;   \
+                        vk sr = {0}, si = {0}, s2 = {0};                     \
+                        for (int c = 0; c < nch; c++) {                      \
+                            vk ar, ai, br, bi;                               \
+                            size_t l = (size_t)c * BISPEC_LANES;             \
+                            memcpy(&ar, pa + l, sizeof ar);                  \
+                            memcpy(&ai, pa + K + l, sizeof ai);              \
+                            memcpy(&br, pb + l, sizeof br);                  \
+                            memcpy(&bi, pb + K + l, sizeof bi);              \
+                            vk abr = ar * br - ai * bi, abi = ar * bi + ai * br; \
+                            vk xr = abr * cr[c] + abi * ci[c];               \
+                            vk xi = abi * cr[c] - abr * ci[c];               \
+                            sr += xr;                                        \
+                            si += xi;                                        \
+                            if (ACC2F)                                       \
+                                s2 += xr * xr + xi * xi;                     \
+                        }                                                    \
+                        acc[2 * t] += hsum(&sr);                             \
+                        acc[2 * t + 1] += hsum(&si);                         \
+                        if (ACC2F)                                           \
+                            acc2[t] += hsum(&s2);                            \
+                    }                                                        \
+                    cur[i - o] = t;                                          \
                 }                                                            \
-                acc[2 * t] += hsum(&sr);                                     \
-                acc[2 * t + 1] += hsum(&si);                                 \
-                if (ACC2F)                                                   \
-                    acc2[t] += hsum(&s2);                                    \
             }                                                                \
         }                                                                    \
     }

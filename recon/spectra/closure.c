@@ -350,6 +350,34 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
     return SL_OK;
 }
 
+/* The threshold that keeps at most about cap of the triples at or above
+ * thr, the strongest: a histogram of log(|B| / mx) in CAP_BINS bins
+ * between thr and mx, cut where the running count would pass cap. */
+#define CAP_BINS 1024
+static double cap_threshold(const phasor_graph *g, double mx, double thr, long cap)
+{
+    long hist[CAP_BINS] = {0};
+    double lo = log(thr / mx); /* < 0 */
+    for (int j = 1; j < g->nfreq; j++)
+        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
+            int l1, l2;
+            double br, bi, wt;
+            phasor_triple(g, j, t, &l1, &l2, &br, &bi, &wt);
+            double m = sqrt(br * br + bi * bi);
+            if (!(m >= thr))
+                continue;
+            int b = (int)(log(m / mx) / lo * CAP_BINS);
+            hist[b < 0 ? 0 : b >= CAP_BINS ? CAP_BINS - 1 : b]++;
+        }
+    long n = 0;
+    for (int b = 0; b < CAP_BINS; b++) {
+        if (n + hist[b] > cap)
+            return mx * exp(lo * b / CAP_BINS);
+        n += hist[b];
+    }
+    return thr;
+}
+
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
                        const int32_t *fq, int w, int h, double rel_min,
                        const binary_result *init, binary_result *out,
@@ -364,6 +392,10 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
     keep_triples(g, fp, fq, INFINITY, NULL, &mx);
     double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
     long n = keep_triples(g, fp, fq, thr, NULL, NULL);
+    if (n > CLOSURE_MAX_TRIPLES) {
+        thr = cap_threshold(g, mx, thr, CLOSURE_MAX_TRIPLES);
+        n = keep_triples(g, fp, fq, thr, NULL, NULL);
+    }
     if (n < 16)
         return sl_seterr(err, SL_EDATA, "closure fit: only %ld triples "
                          "above %.3g of the strongest", n, thr);

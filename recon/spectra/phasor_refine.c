@@ -13,10 +13,10 @@
  * passes where 0.1 (6 %) left it at 0.850.
  *
  * Threads: a pass scatters every strong triple's three proposals, so
- * the triples are cut into REFINE_CHUNKS fixed chunks, each summed whole
- * into its own proposal plane, and the planes are added in chunk order:
- * the same bits on any number of threads.  Listing the strong triples is
- * split the same way, by blocks of targets concatenated in order.
+ * the strong triples are listed in REFINE_CHUNKS fixed chunks (blocks of
+ * targets), each summed whole into its own proposal plane, and the
+ * planes are added in chunk order: the same bits on any number of
+ * threads.  The chunks stay separate lists (24 bytes a triple, once).
  */
 #include "phasor_int.h"
 
@@ -58,10 +58,8 @@ static void add_leg(double *Z, int n, int l, double zr, double zi)
 typedef struct refine_ctx {
     const phasor_graph *g;
     const unsigned char *known;
-    strong *part[REFINE_CHUNKS]; /* strong triples of target block c */
-    int64_t npart[REFINE_CHUNKS];
-    const strong *s;             /* all of them, in target order */
-    int64_t ns;
+    strong *part[REFINE_CHUNKS]; /* strong triples of target block k */
+    int64_t npart[REFINE_CHUNKS]; /* -1: out of memory */
     const double *E;
     double *zc;                  /* REFINE_CHUNKS planes of 2 nfreq */
     double cost[REFINE_CHUNKS];
@@ -124,33 +122,14 @@ static void list_job(void *ctx, int tid, int nthr)
                                   (int)((int64_t)n * (k + 1) / REFINE_CHUNKS), &c->npart[k]);
 }
 
-/* Every block's list, concatenated in target order; NULL when out of
- * memory. */
-static strong *strong_triples(refine_ctx *c)
+/* Every block's list; 0 when some block's could not be allocated. */
+static int strong_triples(refine_ctx *c)
 {
     tpool_run_or_inline(c->g->pool, list_job, c);
-    int64_t ns = 0, bad = 0;
-    for (int k = 0; k < REFINE_CHUNKS; k++) {
-        bad |= c->npart[k] < 0;
-        ns += c->npart[k] > 0 ? c->npart[k] : 0;
-    }
-    strong *s = bad ? NULL : malloc(sizeof *s * (size_t)(ns ? ns : 1));
-    int64_t at = 0;
-    for (int k = 0; k < REFINE_CHUNKS; k++) {
-        if (s && c->npart[k] > 0)
-            memcpy(s + at, c->part[k], sizeof *s * (size_t)c->npart[k]);
-        at += c->npart[k] > 0 ? c->npart[k] : 0;
-        free(c->part[k]);
-    }
-    c->ns = ns;
-    return s;
-}
-
-/* Chunk k of the strong triples: [lo, hi). */
-static void chunk(const refine_ctx *c, int k, int64_t *lo, int64_t *hi)
-{
-    *lo = c->ns * k / REFINE_CHUNKS;
-    *hi = c->ns * (k + 1) / REFINE_CHUNKS;
+    for (int k = 0; k < REFINE_CHUNKS; k++)
+        if (c->npart[k] < 0)
+            return 0;
+    return 1;
 }
 
 /* tpool job: chunk k's proposals into plane k. */
@@ -160,11 +139,9 @@ static void scatter_job(void *ctx, int tid, int nthr)
     int n = c->g->nfreq;
     for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
         double *Z = c->zc + (size_t)k * 2 * n;
-        int64_t lo, hi;
-        chunk(c, k, &lo, &hi);
         memset(Z, 0, sizeof *Z * 2 * (size_t)n);
-        for (int64_t t = lo; t < hi; t++) {
-            const strong *q = &c->s[t];
+        for (int64_t t = 0; t < c->npart[k]; t++) {
+            const strong *q = &c->part[k][t];
             double pr, pi, ur = q->w * q->br, ui = q->w * q->bi;
             double ejr = c->E[2 * q->j], eji = c->E[2 * q->j + 1];
             propose(c->E, q, &pr, &pi);
@@ -186,11 +163,9 @@ static void misfit_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
-        int64_t lo, hi;
-        chunk(c, k, &lo, &hi);
         double m = 0;
-        for (int64_t t = lo; t < hi; t++) {
-            const strong *q = &c->s[t];
+        for (int64_t t = 0; t < c->npart[k]; t++) {
+            const strong *q = &c->part[k][t];
             double pr, pi;
             propose(c->E, q, &pr, &pi);
             m += q->w - (pr * c->E[2 * q->j] + pi * c->E[2 * q->j + 1]);
@@ -215,11 +190,10 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
     phasor_graph gr = *g;
     gr.weight = g->refine_weight;
     refine_ctx c = {.g = &gr, .known = known, .E = E};
-    strong *s = strong_triples(&c);
+    int listed = strong_triples(&c);
     double *keep = malloc(sizeof *keep * 4 * (size_t)n);
     c.zc = malloc(sizeof *c.zc * 2 * (size_t)n * REFINE_CHUNKS);
-    c.s = s;
-    if (!s || !keep || !c.zc)
+    if (!listed || !keep || !c.zc)
         goto free_all;
     double cost = misfit(&c);
     for (int it = 0; it < iters; it++) {
@@ -247,7 +221,8 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
             break;
     }
 free_all:
-    free(s);
+    for (int k = 0; k < REFINE_CHUNKS; k++)
+        free(c.part[k]);
     free(keep);
     free(c.zc);
 }

@@ -1,5 +1,6 @@
 /* closure.c - see closure.h. */
 #include "closure.h"
+#include "base/tpool.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -17,6 +18,12 @@ typedef struct kept {
     int32_t grp;       /* jackknife group: the sector of u_j's angle */
 } kept;
 
+/* cost()'s pass over the triples is cut into COST_CHUNKS fixed chunks,
+ * summed on the pool's threads and added in chunk order: the same bits
+ * on any number of threads. */
+#define COST_CHUNKS 16
+#define COST_SUMS (1 + NP + NP * NP)
+
 typedef struct fitctx {
     const kept *t;
     long n;
@@ -25,6 +32,9 @@ typedef struct fitctx {
     double *a;  /* nf: arg V(u_j) */
     double *gr; /* NP nf: d arg V / d (dx, dy, ln r) */
     int skip;   /* jackknife group left out, -1 none */
+    tpool *pool; /* NULL: this thread */
+    int want_A;                          /* cost: also J^T W J, J^T W e */
+    double part[COST_CHUNKS][COST_SUMS]; /* per chunk: f, b, A */
 } fitctx;
 
 /* arg V and its gradient at every frequency: one sincos and one atan2
@@ -59,35 +69,61 @@ static inline void add_leg(const fitctx *c, int l, double s, double *m, double J
         J[k] += s * c->gr[NP * l + k];
 }
 
+/* tpool job: chunk k's share of the cost, f then b then A's lower
+ * triangle, into part[k]. */
+static void cost_job(void *ctx, int tid, int nthr)
+{
+    fitctx *c = ctx;
+    for (int k = tid; k < COST_CHUNKS; k += nthr) {
+        double *f = c->part[k], *b = f + 1, *A = b + NP;
+        memset(f, 0, COST_SUMS * sizeof *f);
+        for (long i = c->n * k / COST_CHUNKS; i < c->n * (k + 1) / COST_CHUNKS; i++) {
+            const kept *t = &c->t[i];
+            if (t->grp == c->skip)
+                continue;
+            double m = 0, J[NP] = {0};
+            add_leg(c, t->l1, 1.0, &m, J);
+            add_leg(c, t->l2, 1.0, &m, J);
+            add_leg(c, t->j, -1.0, &m, J);
+            /* |e| < 4 pi (four terms in [-pi, pi]): two folds wrap it, at
+             * a tenth of remainder()'s cost */
+            double e = t->ph - m;
+            for (int w = 0; w < 2; w++)
+                e = e > M_PI ? e - 2.0 * M_PI : e < -M_PI ? e + 2.0 * M_PI : e;
+            *f += t->wt * e * e;
+            if (!c->want_A)
+                continue;
+            for (int p = 0; p < NP; p++) {
+                b[p] += t->wt * J[p] * e;
+                for (int q = 0; q <= p; q++)
+                    A[p * NP + q] += t->wt * J[p] * J[q];
+            }
+        }
+    }
+}
+
 /* Weighted cost at th; with A and b also J^T W J and J^T W e. */
 static double cost(fitctx *c, const double th[NP], double *A, double *b)
 {
     model(c, th);
+    c->want_A = A != NULL;
+    if (c->pool)
+        tpool_run(c->pool, cost_job, c);
+    else
+        cost_job(c, 0, 1);
+    double f = 0;
     if (A) {
         memset(A, 0, NP * NP * sizeof *A);
         memset(b, 0, NP * sizeof *b);
     }
-    double f = 0;
-    for (long i = 0; i < c->n; i++) {
-        const kept *t = &c->t[i];
-        if (t->grp == c->skip)
-            continue;
-        double m = 0, J[NP] = {0};
-        add_leg(c, t->l1, 1.0, &m, J);
-        add_leg(c, t->l2, 1.0, &m, J);
-        add_leg(c, t->j, -1.0, &m, J);
-        /* |e| < 4 pi (four terms in [-pi, pi]): two folds wrap it, at a
-         * tenth of remainder()'s cost */
-        double e = t->ph - m;
-        for (int k = 0; k < 2; k++)
-            e = e > M_PI ? e - 2.0 * M_PI : e < -M_PI ? e + 2.0 * M_PI : e;
-        f += t->wt * e * e;
+    for (int k = 0; k < COST_CHUNKS; k++) {
+        f += c->part[k][0];
         if (!A)
             continue;
         for (int p = 0; p < NP; p++) {
-            b[p] += t->wt * J[p] * e;
+            b[p] += c->part[k][1 + p];
             for (int q = 0; q <= p; q++)
-                A[p * NP + q] += t->wt * J[p] * J[q];
+                A[p * NP + q] += c->part[k][1 + NP + p * NP + q];
         }
     }
     if (A)
@@ -291,14 +327,14 @@ static int count_used(const kept *t, long n, int nf, int *nused)
     return SL_OK;
 }
 
-static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep,
+static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep, tpool *pool,
                     const binary_result *init, binary_result *out,
                     closure_fit_info *info, sl_err *err)
 {
     int nused = 0;
     if (count_used(t, n, nf, &nused) != SL_OK)
         return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
-    fitctx c = {t, n, kv, nf, kv + 2 * (size_t)nf, kv + 3 * (size_t)nf, -1};
+    fitctx c = {t, n, kv, nf, kv + 2 * (size_t)nf, kv + 3 * (size_t)nf, -1, pool, 0, {{0}}};
     double lr0 = log(fmin(fmax(init->flux_ratio, 1e-3), 0.9));
     double best[NP] = {init->dx_px, init->dy_px, lr0};
     double A[NP * NP], Abest[NP * NP] = {0}, fbest = INFINITY;
@@ -411,7 +447,7 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
         k[2 * j] = 2.0 * M_PI * fp[j] / w;
         k[2 * j + 1] = 2.0 * M_PI * fq[j] / h;
     }
-    rc = fit_kept(t, n, k, nf, 0.5 * (w < h ? w : h), init, out, info, err);
+    rc = fit_kept(t, n, k, nf, 0.5 * (w < h ? w : h), g->pool, init, out, info, err);
 free_buffers:
     free(t);
     free(k);
@@ -480,7 +516,7 @@ int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
             k[2 * (a * nf + j) + 1] = rho * sin(th);
         }
     }
-    rc = fit_kept(t, n, k, nt, 0.5 * nproj, init, out, info, err);
+    rc = fit_kept(t, n, k, nt, 0.5 * nproj, NULL, init, out, info, err);
 free_buffers:
     free(t);
     free(k);

@@ -406,7 +406,8 @@ TEST(r2_bounded_by_memory)
 
 /* 1 and 2 threads give the same image bit for bit: the frames read ahead
  * on a thread of their own (pipeline_ahead.c) against the serial pass,
- * and each estimator's own threads. */
+ * and each estimator's own threads; and direct's closure-phase fit the
+ * same binary. */
 TEST(images_equal_on_one_and_two_threads)
 {
     tmp_cubes cubes = {0};
@@ -414,11 +415,13 @@ TEST(images_equal_on_one_and_two_threads)
     static const int methods[] = {PIPE_DIRECT, PIPE_TSM, PIPE_TSM_FOURIER};
     for (int m = 0; m < 3 && !t->failed; m++) {
         float *img[2] = {NULL, NULL};
+        double fit[2][6] = {{0}};
         size_t npx = 0;
         for (int k = 0; k < 2; k++) {
             pipeline_opts o;
             pipeline_opts_defaults(&o);
             o.method = methods[m], o.fftw_measure = 0, o.nthreads = k + 1;
+            o.closure_binary = methods[m] == PIPE_DIRECT;
             pipeline_result r;
             sl_err e;
             const char *paths[] = {cubes.path[0]};
@@ -430,6 +433,10 @@ TEST(images_equal_on_one_and_two_threads)
             npx = (size_t)r.width * r.height;
             img[k] = malloc(npx * sizeof *img[k]);
             memcpy(img[k], r.image, npx * sizeof *img[k]);
+            const binary_result *c = &r.binary.closure;
+            double v[6] = {c->sep_px, c->pa_deg, c->dm_mag, r.binary.sep_err_px,
+                           r.binary.pa_err_deg, r.binary.dm_err_mag};
+            memcpy(fit[k], v, sizeof v);
             pipeline_result_clear(&r);
         }
         int same = img[0] && img[1] && memcmp(img[0], img[1], npx * sizeof *img[0]) == 0;
@@ -437,6 +444,9 @@ TEST(images_equal_on_one_and_two_threads)
         free(img[1]);
         CHECK(same || t->failed, "%s: 2 threads' image differs from 1 thread's",
               pipeline_method_name(methods[m]));
+        CHECK(methods[m] != PIPE_DIRECT || fit[0][0] > 0, "direct: no closure fit to compare");
+        CHECK(memcmp(fit[0], fit[1], sizeof fit[0]) == 0, "%s: closure fit %.9g px on 1 thread, "
+              "%.9g on 2", pipeline_method_name(methods[m]), fit[0][0], fit[1][0]);
     }
     tmp_clean(&cubes);
 }

@@ -146,6 +146,14 @@ TINT_SRC  := $(wildcard tests/integration/test_*.c)
 TINT_BIN  := $(TINT_SRC:tests/integration/%.c=$(BUILD)/tests/%)
 TINT_HELP := $(filter-out $(TINT_SRC),$(wildcard tests/integration/*.c))
 ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
+# tests/lib: what the tests share that starts no process (the harness
+# tcheck, scratch directories, synthetic data, reading results back),
+# compiled once into an archive every test links; a binary pulls in only
+# the members it uses.  The process, daemon and camera fixtures stay
+# headers beside their tests.
+TESTLIB_SRC := $(wildcard tests/lib/*.c)
+TESTLIB_OBJ := $(TESTLIB_SRC:%.c=$(BUILD)/%.o)
+TESTLIB     := $(BUILD)/libsltest.a
 
 # MPI (optional): Open MPI found by pkg-config (ompi-c, else mpi) builds
 # bin/specklab-mpi from mpi/ (specklab recon over MPI ranks); MPI=1 insists
@@ -240,27 +248,34 @@ $(BUILD)/schema/%.o: schema/%.c
 $(SCHEMA_LIB): $(SCHEMA_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
-$(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(COMMON_LIB)
-	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(COMMON_LIB) $(schema_libs) -lm
+$(TESTLIB): $(TESTLIB_OBJ)
+	rm -f $@ && ar rcs $@ $^
 
-$(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/lib/%.o: tests/lib/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
+	$(CC) $(CFLAGS_ALL) -Itests/lib -Irecon -Ischema $(recon_cflags) $(schema_cflags) -c $< -o $@
+
+$(BUILD)/tests/%: tests/catalog/%.c $(TESTLIB) $(SCHEMA_LIB) $(COMMON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Ischema -Itests/lib $(schema_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(COMMON_LIB) $(schema_libs) -lm
+
+$(BUILD)/tests/%: tests/stress/%.c $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Itests/lib $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
 # test_mpi* run mpirun on bin/specklab-mpi when the build has MPI.
 $(BUILD)/tests/test_mpi $(BUILD)/tests/test_mpi_reprocess: $(MPI_BIN)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(TESTLIB) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/lib -Itests/unit -Itests/integration \
 	    $(if $(MPI_BIN),-DSL_HAVE_MPI=1) \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
-	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) $(fig_libs) -lm
 
 # The soak program (make soak only): the integration fixture plus the
@@ -268,11 +283,11 @@ $(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV
 SOAK_SRC := $(wildcard tests/soak/*.c)
 SOAK_BIN := $(BUILD)/soak/soak
 $(SOAK_BIN): $(SOAK_SRC) $(wildcard tests/soak/*.h) tests/integration/daemon_fx.h \
-             tests/integration/daemon_client.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
+             tests/integration/daemon_client.h $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/lib -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $(SOAK_SRC) -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
@@ -317,22 +332,22 @@ $(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) \
 	    $(recon_libs) $(FFTW_THREADS_LIBS) $(daemon_libs) $(fig_libs) -lm
 
-$(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/unit/%.c $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Itests/lib -Itests/unit $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
-$(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/figure/%.c $(TESTLIB) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/lib $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
 
 # They may link camsrc (the simulator as the fake camera's source); the
 # shared object is there for those that load it as specklabd does.
-$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) | $(FAKESRC_SO)
+$(BUILD)/tests/%: tests/drivers/%.c $(TESTLIB) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) | $(FAKESRC_SO)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc -Itests/lib -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
 
 # Install what pkg-config lacks (root) or say the exact apt-get line.
 deps:
@@ -368,11 +383,11 @@ stress: all
 # make soak): three 1000-frame runs, the middle one watched by ten viewers.
 SOAK_WEB_BIN := $(BUILD)/soak/web-viewers
 $(SOAK_WEB_BIN): tests/soak/web/viewers.c tests/integration/daemon_fx.h \
-                 tests/integration/daemon_client.h tests/integration/web_fx.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
+                 tests/integration/daemon_client.h tests/integration/web_fx.h $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/lib -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 # Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/),
 # then the web page's ten viewers (~1 min).
@@ -522,5 +537,5 @@ include mk/install.mk
 clean:
 	rm -rf build build-asan build-fuzz bin
 
--include $(COMMON_OBJ:.o=.d) $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+-include $(COMMON_OBJ:.o=.d) $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) $(TESTLIB_OBJ:.o=.d) \
          $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d) $(MPI_OBJ:.o=.d)

@@ -146,6 +146,14 @@ TINT_SRC  := $(wildcard tests/integration/test_*.c)
 TINT_BIN  := $(TINT_SRC:tests/integration/%.c=$(BUILD)/tests/%)
 TINT_HELP := $(filter-out $(TINT_SRC),$(wildcard tests/integration/*.c))
 ALL_TESTS := $(TEST_BIN) $(TSTR_BIN) $(TDRV_BIN) $(TCAT_BIN) $(TINT_BIN)
+# tests/lib: what the tests share that starts no process (the harness
+# tcheck, scratch directories, synthetic data, reading results back),
+# compiled once into an archive every test links; a binary pulls in only
+# the members it uses.  The process, daemon and camera fixtures stay
+# headers beside their tests.
+TESTLIB_SRC := $(wildcard tests/lib/*.c)
+TESTLIB_OBJ := $(TESTLIB_SRC:%.c=$(BUILD)/%.o)
+TESTLIB     := $(BUILD)/libsltest.a
 
 # MPI (optional): Open MPI found by pkg-config (ompi-c, else mpi) builds
 # bin/specklab-mpi from mpi/ (specklab recon over MPI ranks); MPI=1 insists
@@ -240,27 +248,34 @@ $(BUILD)/schema/%.o: schema/%.c
 $(SCHEMA_LIB): $(SCHEMA_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
-$(BUILD)/tests/%: tests/catalog/%.c $(SCHEMA_LIB) $(COMMON_LIB)
-	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Ischema -Itests/unit -Itests/catalog $(schema_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(COMMON_LIB) $(schema_libs) -lm
+$(TESTLIB): $(TESTLIB_OBJ)
+	rm -f $@ && ar rcs $@ $^
 
-$(BUILD)/tests/%: tests/stress/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/lib/%.o: tests/lib/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
+	$(CC) $(CFLAGS_ALL) -Itests/lib -Irecon -Ischema $(recon_cflags) $(schema_cflags) -c $< -o $@
+
+$(BUILD)/tests/%: tests/catalog/%.c $(TESTLIB) $(SCHEMA_LIB) $(COMMON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Ischema -Itests/lib $(schema_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(COMMON_LIB) $(schema_libs) -lm
+
+$(BUILD)/tests/%: tests/stress/%.c $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -Irecon -Itests/lib $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
 # test_mpi* run mpirun on bin/specklab-mpi when the build has MPI.
 $(BUILD)/tests/test_mpi $(BUILD)/tests/test_mpi_reprocess: $(MPI_BIN)
 
 # Integration tests link the CLI library (client, commands) and any helper
 # .c in tests/integration that is not itself a test.
-$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(TESTLIB) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Ischema -Icli -Itests/lib -Itests/unit -Itests/integration \
 	    $(if $(MPI_BIN),-DSL_HAVE_MPI=1) \
 	    $(recon_cflags) $(cli_cflags) $(daemon_cflags) $(tdrv_cflags) $< $(TINT_HELP) -o $@ \
-	    $(LDFLAGS_ALL) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(CLI_LIB) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) \
 	    $(cli_libs) $(schema_libs) $(daemon_libs) $(tdrv_libs) $(fig_libs) -lm
 
 # The soak program (make soak only): the integration fixture plus the
@@ -268,11 +283,11 @@ $(BUILD)/tests/%: tests/integration/%.c $(TINT_HELP) $(CLI_LIB) $(FIG_LIB) $(DRV
 SOAK_SRC := $(wildcard tests/soak/*.c)
 SOAK_BIN := $(BUILD)/soak/soak
 $(SOAK_BIN): $(SOAK_SRC) $(wildcard tests/soak/*.h) tests/integration/daemon_fx.h \
-             tests/integration/daemon_client.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
+             tests/integration/daemon_client.h $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/lib -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $(SOAK_SRC) -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 $(RECON_LIB): $(RECON_OBJ)
 	@mkdir -p $(dir $@)
@@ -317,33 +332,38 @@ $(BIN)/specklabd: $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB)
 	$(CC) $(LDFLAGS_ALL) -o $@ $(DAEMON_OBJ) $(FIG_LIB) $(DRV_LIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) \
 	    $(recon_libs) $(FFTW_THREADS_LIBS) $(daemon_libs) $(fig_libs) -lm
 
-$(BUILD)/tests/%: tests/unit/%.c $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/unit/%.c $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Itests/lib -Itests/unit $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(BENCH_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs)
 
-$(BUILD)/tests/%: tests/figure/%.c $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
+$(BUILD)/tests/%: tests/figure/%.c $(TESTLIB) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/unit $(recon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Ifigure -Itests/lib $(recon_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(FIG_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(fig_libs)
 
 # They may link camsrc (the simulator as the fake camera's source); the
 # shared object is there for those that load it as specklabd does.
-$(BUILD)/tests/%: tests/drivers/%.c $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) | $(FAKESRC_SO)
+$(BUILD)/tests/%: tests/drivers/%.c $(TESTLIB) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) | $(FAKESRC_SO)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
+	$(CC) $(CFLAGS_ALL) -Irecon -Idrivers -Imocks/camsrc -Itests/lib -Itests/unit $(recon_cflags) $(tdrv_cflags) $< -o $@ \
+	    $(LDFLAGS_ALL) $(TESTLIB) $(DRV_LIB) $(CAMSRC_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(tdrv_libs)
 
 # Install what pkg-config lacks (root) or say the exact apt-get line.
 deps:
 	@scripts/install-deps
 
 # Everything CI runs: every test binary, the recon/stress/catalogue tests
-# again under ASan+UBSan (asan-ci-build), then the fuzz targets' corpus
-# replay and a short fuzz run each.  The final line is "N passed, N failed".
+# again under ASan+UBSan (asan-ci-build), and each fuzz target's corpus
+# replay and short fuzz run.  One make builds all three trees, one job per
+# CPU unless -j is given (CI runs plain `make test`); then one tests/run
+# runs every binary, sanitized and fuzz ones too, side by side, longest
+# first.  The final line is "N passed, N failed, N skipped".
+NPROC := $(shell nproc 2>/dev/null || echo 1)
 test: deps
-	@$(MAKE) --no-print-directory all $(FUZZ_BUILD)/ci-fuzz-run asan-ci-build
-	@tests/run $(ALL_TESTS) build-asan/ci-asan-run $(FUZZ_BUILD)/ci-fuzz-run
+	@$(MAKE) --no-print-directory $(if $(findstring -j,$(MAKEFLAGS)),,-j$(NPROC)) \
+	    all fuzz-ci-build asan-ci-build
+	@$(ASAN_ENV) tests/run $(ALL_TESTS) $(ASAN_CI_TESTS) $(FUZZ_CI_RUNS)
 
 # The fast subset for the edit-compile loop: unit tests only.
 quick: all
@@ -368,11 +388,11 @@ stress: all
 # make soak): three 1000-frame runs, the middle one watched by ten viewers.
 SOAK_WEB_BIN := $(BUILD)/soak/web-viewers
 $(SOAK_WEB_BIN): tests/soak/web/viewers.c tests/integration/daemon_fx.h \
-                 tests/integration/daemon_client.h tests/integration/web_fx.h $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
+                 tests/integration/daemon_client.h tests/integration/web_fx.h $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/unit -Itests/integration \
+	$(CC) $(CFLAGS_ALL) -Irecon -Ischema -Itests/lib -Itests/unit -Itests/integration \
 	    $(recon_cflags) $(schema_cflags) $(daemon_cflags) $< -o $@ \
-	    $(LDFLAGS_ALL) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
+	    $(LDFLAGS_ALL) $(TESTLIB) $(SCHEMA_LIB) $(RECON_LIB) $(COMMON_LIB) $(recon_libs) $(schema_libs) $(daemon_libs) -lm
 
 # Daemon soak on the mocks, ~3 min, never in CI: lost frames, RSS, fds, files (tests/soak/),
 # then the web page's ten viewers (~1 min).
@@ -383,13 +403,14 @@ soak-web: all $(SOAK_WEB_BIN)
 	@$(SOAK_WEB_BIN)
 
 # The whole suite under AddressSanitizer + UndefinedBehaviorSanitizer, in a
-# separate build tree.
+# separate build tree.  ASAN_ENV only affects sanitized programs.
+ASAN_ENV := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+            UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 asan: deps
 	@$(MAKE) --no-print-directory BUILD=build-asan BIN=build-asan/bin \
 	    OPT="-O1 -g -fno-omit-frame-pointer" \
 	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all" all
-	@SPECKLABD=build-asan/bin/specklabd ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
-	 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+	@SPECKLABD=build-asan/bin/specklabd $(ASAN_ENV) \
 	 tests/run $(patsubst $(BUILD)/%,build-asan/%,$(ALL_TESTS))
 
 # The part of `make asan` that CI runs inside `make test`: the recon, stress
@@ -399,7 +420,7 @@ asan: deps
 # sanitized, and five numerics tests repeat sanitized code the others cover
 # at 4-5x their plain time (blind 55 s, closure 42, stress_accum 41, stress
 # 33, binary 22: 190 of the 334 s): they stay in `make asan`, so that
-# `make test` keeps under 15 min on 2 cores.
+# `make test` keeps under 7 min on 2 cores.
 ASAN_CI_SLOW  := test_blind test_closure test_binary test_stress test_stress_accum
 ASAN_CI_TESTS := $(patsubst $(BUILD)/%,build-asan/%,$(filter-out \
                      $(addprefix $(BUILD)/tests/,$(ASAN_CI_SLOW)),$(TEST_BIN) $(TSTR_BIN) $(TCAT_BIN)))
@@ -407,8 +428,6 @@ asan-ci-build:
 	@$(MAKE) --no-print-directory BUILD=build-asan BIN=build-asan/bin \
 	    OPT="-O1 -g -fno-omit-frame-pointer" \
 	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all" $(ASAN_CI_TESTS)
-	@printf '#!/bin/sh\n# generated by make: the CI part of make asan\nASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 TEST_JOBS=1 exec tests/run $(ASAN_CI_TESTS)\n' > build-asan/ci-asan-run
-	@chmod +x build-asan/ci-asan-run
 
 # Valgrind memcheck on the recon unit tests (definite leaks and every
 # memory error fail; forked "crash" children are not checked).  Slow: ~20x.
@@ -426,8 +445,9 @@ demo: deps
 FUZZ_CC    ?= clang
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECS  ?= 60
-# CI's smoke run per target (8 targets): 12 s keeps make test near its
-# 15-minute bound on 2 cores; `make fuzz` is the deep run.
+# CI's smoke run per target (8 targets, each a job of make test's
+# tests/run, one core each): 8 x 12 s of the 2 x 7 minutes make test may
+# take on 2 cores; `make fuzz` is the deep run.
 FUZZ_CI_SECS ?= 12
 FUZZ_CFLAGS := -std=c11 -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g \
                -fno-omit-frame-pointer $(WARN) -Icommon \
@@ -504,13 +524,19 @@ $(FUZZ_BUILD)/fuzz_http: tests/fuzz/fuzz_http.c $(FUZZ_HTTP_SRC) $(FUZZ_BUILD)/s
 	    $(FUZZ_BUILD)/schema/catalog_res.o $(FUZZ_BUILD)/daemon/web_res.o -o $@ \
 	    $(shell $(PKG) --libs $(FUZZ_HTTP_PKGS)) -lm
 
-# The short fuzz run CI does, as one more "test binary" for tests/run.
-$(FUZZ_BUILD)/ci-fuzz-run: $(FUZZ_BIN)
-	@printf '#!/bin/sh\n# generated by make: short fuzz run + corpus replay\nexec tests/fuzz/run $(FUZZ_BUILD) $(FUZZ_CI_SECS)\n' > $@
+# CI's replay and short fuzz run of each target, each one more "test
+# binary" for tests/run, so that the targets run beside the other tests
+# (one core each) rather than one after another.  The sanitizer options of
+# make test are cleared: tests/fuzz/run sets its own.
+FUZZ_CI_RUNS := $(FUZZ_BIN:$(FUZZ_BUILD)/%=$(FUZZ_BUILD)/ci/%)
+$(FUZZ_CI_RUNS): $(FUZZ_BUILD)/ci/%: $(FUZZ_BUILD)/% Makefile
+	@mkdir -p $(dir $@)
+	@printf '#!/bin/sh\n# generated by make: replay and short fuzz run of %s\nASAN_OPTIONS= UBSAN_OPTIONS= exec tests/fuzz/run $(FUZZ_BUILD) $(FUZZ_CI_SECS) %s\n' $* $* > $@
 	@chmod +x $@
 
-.PHONY: fuzz-build
+.PHONY: fuzz-build fuzz-ci-build
 fuzz-build: $(FUZZ_BIN)
+fuzz-ci-build: $(FUZZ_CI_RUNS)
 
 # Each target for FUZZ_SECS seconds after replaying the committed corpus.
 fuzz: deps
@@ -522,5 +548,5 @@ include mk/install.mk
 clean:
 	rm -rf build build-asan build-fuzz bin
 
--include $(COMMON_OBJ:.o=.d) $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) \
+-include $(COMMON_OBJ:.o=.d) $(RECON_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(FIG_OBJ:.o=.d) $(DRV_OBJ:.o=.d) $(DAEMON_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(ALL_TESTS:=.d) $(TESTLIB_OBJ:.o=.d) \
          $(wildcard $(BUILD)/mocks/*/*.d) $(SCHEMA_OBJ:.o=.d) $(MPI_OBJ:.o=.d)

@@ -10,7 +10,7 @@
  * CLONE_NEWUSER when not root) whose loopback is brought up by ioctl; the
  * fakes it starts inherit it and die with it (PR_SET_PDEATHSIG).  Without
  * namespace support the child says so and uses the host's namespace
- * (tests/run runs binaries one at a time).  The parent reads the child's
+ * (tests/run then runs binaries one at a time).  The parent reads the child's
  * verdict with a deadline.  Aravis/GLib start only in the children.
  *
  * Synchronisation: fakes are waited for by their READY line (the stock

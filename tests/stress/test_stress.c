@@ -180,7 +180,7 @@ static int dr_one(fx *f, const char *ref, const float *psf, double dm,
         int meth = m ? PIPE_TSM_FOURIER : PIPE_DIRECT;
         pipeline_result r;
         sl_err e = {0};
-        if (fx_recon(cube, meth, 180, ref, f->buf[2], &r, &e) != SL_OK)
+        if (fx_recon(cube, meth, 180, ref, f->path[2], &r, &e) != SL_OK)
             return snprintf(why, nwhy, "%s", e.msg), 1;
         double ratio = detect(r.image, psf, 128, 128, 20.0, s.pa_deg);
         pipeline_result_clear(&r);

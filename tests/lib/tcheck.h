@@ -6,6 +6,7 @@
  * Each binary ends with "NAME: N passed, N failed, N skipped"; tests/run
  * sums the binaries into the final "N passed, N failed" line.
  * No globals: the state travels in the tc passed to each test.
+ * tc_note and tc_main live in tcheck.c, compiled once into libsltest.a.
  */
 #ifndef SL_TCHECK_H
 #define SL_TCHECK_H
@@ -21,26 +22,10 @@ typedef struct tc {
     char msg[1024];
 } tc;
 
-static inline void tc_note(tc *t, int skip, const char *file, int line,
-                           const char *cond, const char *fmt, ...)
-    __attribute__((format(printf, 6, 7)));
-static inline void tc_note(tc *t, int skip, const char *file, int line,
-                           const char *cond, const char *fmt, ...)
-{
-    int n = 0;
-    if (skip)
-        t->skipped = 1;
-    else {
-        t->failed = 1;
-        n = snprintf(t->msg, sizeof t->msg, "%s:%d: (%s) ", file, line, cond);
-    }
-    if (n < 0 || (size_t)n >= sizeof t->msg)
-        n = 0;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(t->msg + n, sizeof t->msg - (size_t)n, fmt, ap);
-    va_end(ap);
-}
+/* Record a failure (skip = 0: "file:line: (cond) " then the message) or
+ * a skip (the message alone) in t. */
+void tc_note(tc *t, int skip, const char *file, int line, const char *cond, const char *fmt,
+             ...) __attribute__((format(printf, 6, 7)));
 
 #define TEST(name) static void name(tc *t)
 #define CHECK(cond, ...)                                                      \
@@ -67,33 +52,9 @@ typedef struct tc_case {
     tc_fn fn;
 } tc_case;
 
-static inline int tc_main(const char *prog, int argc, char **argv,
-                          const tc_case *cases, int ncases)
-{
-    int pass = 0, fail = 0, skip = 0;
-    const char *only = argc > 1 ? argv[1] : NULL; /* run one test by name */
-    const char *base = strrchr(prog, '/');
-    base = base ? base + 1 : prog;
-    for (int i = 0; i < ncases; i++) {
-        if (only && strcmp(only, cases[i].name) != 0)
-            continue;
-        tc t = {0};
-        cases[i].fn(&t);
-        if (t.failed) {
-            fail++;
-            printf("FAIL %s/%s: %s\n", base, cases[i].name, t.msg);
-        } else if (t.skipped) {
-            skip++;
-            printf("skip %s/%s: %s\n", base, cases[i].name, t.msg);
-        } else {
-            pass++;
-            printf("ok   %s/%s\n", base, cases[i].name);
-        }
-        fflush(stdout);
-    }
-    printf("%s: %d passed, %d failed, %d skipped\n", base, pass, fail, skip);
-    return fail ? 1 : 0;
-}
+/* Run every case (or only the one named by argv[1]), print a line each
+ * and the summary; 1 when any failed. */
+int tc_main(const char *prog, int argc, char **argv, const tc_case *cases, int ncases);
 
 #define TC_CASE(fn) {#fn, fn}
 #define TC_MAIN(...)                                                          \

@@ -57,6 +57,9 @@ static int name_ok(const char *s)
 }
 
 /* Every key of the file is known (slot groups: keys are slot numbers). */
+/* The bytes of an unknown group's name an error message shows. */
+#define CONFIG_GROUP_SHOWN 64
+
 static int check_keys(GKeyFile *kf, const char *path, sl_err *err)
 {
     gsize ng = 0;
@@ -69,7 +72,12 @@ static int check_keys(GKeyFile *kf, const char *path, sl_err *err)
             if (!strcmp(known_keys[i][0], groups[g]))
                 known = known_keys[i] + 1;
         if (!known && !slots) {
-            rc = sl_seterr(err, SL_EINVAL, "%s: unknown group [%s]", path, groups[g]);
+            /* A name longer than CONFIG_GROUP_SHOWN is cut here, so the
+             * message, not the buffer, decides what is dropped. */
+            size_t n = strlen(groups[g]);
+            rc = sl_seterr(err, SL_EINVAL, "%s: unknown group [%.*s%s", path,
+                           (int)(n > CONFIG_GROUP_SHOWN ? CONFIG_GROUP_SHOWN : n), groups[g],
+                           n > CONFIG_GROUP_SHOWN ? "...] (a name of over 64 bytes)" : "]");
             break;
         }
         gchar **keys = g_key_file_get_keys(kf, groups[g], NULL, NULL);

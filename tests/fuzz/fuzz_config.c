@@ -151,10 +151,12 @@ static void check_refusal(int rc, const sl_err *e, GKeyFile *kf, int parsed, con
         named |= strstr(e->msg, g) != NULL;
         g_free(g);
     }
-    /* An unknown group is named as the file wrote it. */
+    /* An unknown group is named as the file wrote it: whole, or its
+     * first 64 bytes and "..." when longer. */
     gchar **gs = g_key_file_get_groups(kf, NULL);
     for (int i = 0; gs[i] && !named; i++) {
-        char *g = g_strdup_printf("[%s]", gs[i]);
+        size_t n = strlen(gs[i]);
+        char *g = n > 64 ? g_strdup_printf("[%.64s...]", gs[i]) : g_strdup_printf("[%s]", gs[i]);
         named |= strstr(e->msg, g) != NULL && strstr(e->msg, "unknown group") != NULL;
         g_free(g);
     }

@@ -24,11 +24,11 @@
  *         + F * (91 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (2 R2 + 2)
  *         + 4 * (nthreads + 1)
  *         + 4 * (w + 2 R2 + 1) * (h + 2 R2 + 1)          [even w, h]
- *         + w*h * (8 + 4 * win + 64 * (1 + ph * win))
- *         + h * (w/2 + 1) * (16 + 128 * (1 + ph * win))
+ *         + w*h * (8 + 4 * win + 32 * (1 + ph * win))
+ *         + h * (w/2 + 1) * (16 + 64 * (1 + ph * win))
  * A = 16 (double accumulators) or 8 (acc_float), s = 1 for SNR weighting,
  * ph = 1 with photon-bias correction, win = 1 with a window, kb the
- * frames per batch (bispec_batch); the 16 frame slots round w*h up to
+ * frames per batch (bispec_batch); the 8 frame slots round w*h up to
  * 16 floats and h (w/2 + 1) up to 8 complex values.  For a full
  * disk of radius r_c
  *   T ~ (pi^2/4) r_c^2 R2^2 - (pi/3) r_c R2^3 - 2 R2^4   (R2 <= r_c/2)

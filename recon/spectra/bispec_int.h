@@ -15,7 +15,7 @@
 #define BISPEC_LANES 16
 /* Frames transformed together (bispec_add): one per thread at a time,
  * and their slots (in, out) cost 12 w h bytes each. */
-#define BISPEC_SLOTS 16
+#define BISPEC_SLOTS 8
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
 #define BISPEC_TILE 4
 typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));

@@ -13,7 +13,7 @@
  * so the phases do not depend on the thread count.
  *
  * Memory: two blocks of (PHASOR_BLOCK + the most triples of one target)
- * x 40 bytes, ~5 MB.
+ * x 40 bytes, ~2.7 MB.
  */
 #include "phasor_int.h"
 
@@ -21,7 +21,7 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 
-#define PHASOR_BLOCK 65536
+#define PHASOR_BLOCK 32768
 
 /* A triple ready for the recursion: legs (l1 -1: never used, zero
  * weight), the mean bispectrum, the weight over |B| and |B|. */

@@ -668,8 +668,8 @@ TEST(memory_formula)
                       F * (91 + 16 * kb + 16 * ph) + 4.0 * (2 * R2 + 2) +
                       8 + 8.0 * (2 * R2 + 1) * (2 * R2 + 1) + 4 * (o.nthreads + 1) +
                       4.0 * (w + 2 * R2 + 1) * (h + 2 * R2 + 1) +
-                      (double)w * h * (8 + 4 * win + 64.0 * (1 + ph * win)) +
-                      (double)h * (w / 2 + 1) * (16 + 128.0 * (1 + ph * win));
+                      (double)w * h * (8 + 4 * win + 32.0 * (1 + ph * win)) +
+                      (double)h * (w / 2 + 1) * (16 + 64.0 * (1 + ph * win));
         double got = (double)bispec_memory_bytes(b);
         bispec_free(b);
         CHECK(got == want, "variant %d: allocated %.0f, formula %.0f", v, got,

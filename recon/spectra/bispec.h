@@ -36,12 +36,12 @@
  * |u - u2| < |u|, pi R2^2/2, less the lens and small-|u| corrections;
  * within ~1% of the lattice count).  A sparse (aperture-mask) support cuts
  * T by about the square of its filling factor.  bispec_memory_bytes()
- * reports the bytes actually allocated.  Measured at 200 x 200, R2 = 28,
- * 100 frames, 2 threads (shared 2-core VM; times vary ~2x with load):
- *   full disk r_c = 99: F 15379, T 15.39 M, 268 MB (151 MB acc_float),
- *     setup 0.5 s, 100 frames 0.9-2.1 s, phases 0.18 s;
- *   17-hole mask MTF support (54% of the plane): T 9.29 M, 163 MB,
- *     100 frames 0.6-1.2 s;  7-hole: T 1.71 M, 32 MB, 0.1-0.3 s.
+ * reports the bytes actually allocated.  Cost at 200 x 200, R2 = 28, a
+ * full disk r_c = 99 (F 15379, T 15.39 M, 286 MB): setup 0.24 s on one
+ * thread, 0.15-0.2 on two; the triple kernel for 100 frames 1.0-1.4 s on
+ * one, 0.47-0.50 on two (the 2-core VM; its accumulators' first touch
+ * included).  A 17-hole mask's support (54 % of the plane) cuts T to
+ * ~9.3 M, a 7-hole one to ~1.7 M.
  *
  * Streaming.  bispec_add copies the frame's support values into a batch of
  * kb frames (bispec_batch: BISPEC_BATCH_MAX, halved while the batch

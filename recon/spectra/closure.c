@@ -205,6 +205,15 @@ static double lm(fitctx *c, double th[NP], double *A, int max_steps,
     return f; /* A was computed at th: it changes only with an accepted step */
 }
 
+/* Triple t of target j: its legs, mean bispectrum and |B|. */
+static double triple_mod(const phasor_graph *g, int j, int64_t t, int *l1, int *l2, double *br,
+                         double *bi)
+{
+    double wt;
+    phasor_triple(g, j, t, l1, l2, br, bi, &wt);
+    return sqrt(*br * *br + *bi * *bi);
+}
+
 /* Keep the triples with |B| >= thr: counts when out is NULL.  *mx (may
  * be NULL) gets the largest |B| seen. */
 static long keep_triples(const phasor_graph *g, const int32_t *fp,
@@ -214,9 +223,7 @@ static long keep_triples(const phasor_graph *g, const int32_t *fp,
     for (int j = 1; j < g->nfreq; j++)
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
-            double br, bi, wt;
-            phasor_triple(g, j, t, &l1, &l2, &br, &bi, &wt);
-            double m = sqrt(br * br + bi * bi);
+            double br, bi, m = triple_mod(g, j, t, &l1, &l2, &br, &bi);
             if (mx && m > *mx)
                 *mx = m;
             if (!(m >= thr))
@@ -397,9 +404,7 @@ static double cap_threshold(const phasor_graph *g, double mx, double thr, long c
     for (int j = 1; j < g->nfreq; j++)
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
-            double br, bi, wt;
-            phasor_triple(g, j, t, &l1, &l2, &br, &bi, &wt);
-            double m = sqrt(br * br + bi * bi);
+            double br, bi, m = triple_mod(g, j, t, &l1, &l2, &br, &bi);
             if (!(m >= thr))
                 continue;
             int b = (int)(log(m / mx) / lo * CAP_BINS);

@@ -16,7 +16,6 @@
  */
 #include <pthread.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "pipeline_int.h"
 
@@ -84,8 +83,6 @@ static int ahead_consume(ahead *a, add_fn add, void *h, const char *what, sl_err
         if (!have)
             return SL_OK;
         int rc = add ? add(h, a->slot[tail]) : SL_OK;
-        if (rc == SL_OK)
-            memcpy(a->s->frame, a->slot[tail], sizeof(float) * a->s->w * a->s->h);
         pthread_mutex_lock(&a->mu);
         tail = (tail + 1) % AHEAD_SLOTS;
         a->count--;

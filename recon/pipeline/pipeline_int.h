@@ -75,8 +75,7 @@ int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* CLOCK_MONOTONIC in seconds. */
 double stream_now_s(void);
 /* A pass over frames [k0, k1) whole, read and cleaned on a thread of its
- * own while add runs (pipeline_ahead.c); s->frame holds the last frame
- * added.  *ran 0 (and SL_OK) when there was no thread or ring to be had:
+ * own while add runs (pipeline_ahead.c); s->frame is not used.  *ran 0 (and SL_OK) when there was no thread or ring to be had:
  * the caller reads serially. */
 int stream_feed_ahead(stream *s, add_fn add, void *h, const char *what, sl_err *err,
                       int *ran);

@@ -146,8 +146,8 @@ static void scan_reach(const bispec *b, unsigned char *reach)
 typedef struct scan_job {
     bispec *b;
     const unsigned char *reach;
-    uint16_t **list;        /* per block: its triples' disk entries */
-    int fail;               /* a block's list was not allocated */
+    uint16_t **list;        /* per block: its triples' disk entries (NULL:
+                               not allocated) */
 } scan_job;
 
 /* tpool job: list the triples of thread tid's blocks, each target's count
@@ -160,11 +160,8 @@ static void scan_run(void *ctx, int tid, int nthr)
     for (int j0 = tid * SCAN_BLOCK; j0 < b->nf; j0 += nthr * SCAN_BLOCK) {
         int j1 = j0 + SCAN_BLOCK < b->nf ? j0 + SCAN_BLOCK : b->nf;
         uint16_t *row = malloc(((size_t)(j1 - j0) * b->nd + 1) * sizeof *row);
-        if (!row) {
-            s->fail = 1;
-            return;
-        }
-        s->list[j0 / SCAN_BLOCK] = row;
+        if (!(s->list[j0 / SCAN_BLOCK] = row))
+            return; /* scan_triples sees the NULL */
         int64_t t = 0;
         for (int j = j0; j < j1; j++) {
             int64_t t0 = t;
@@ -194,11 +191,14 @@ static void join_run(void *ctx, int tid, int nthr)
 static int scan_triples(bispec *b, const unsigned char *reach)
 {
     size_t nblk = ((size_t)b->nf + SCAN_BLOCK - 1) / SCAN_BLOCK;
-    scan_job job = {b, reach, calloc(nblk, sizeof *job.list), 0};
+    scan_job job = {b, reach, calloc(nblk, sizeof *job.list)};
     if (!job.list)
         return SL_ENOMEM;
     tpool_run(b->pool, scan_run, &job);
-    if (!job.fail) {
+    int fail = 0;
+    for (size_t i = 0; i < nblk; i++)
+        fail |= !job.list[i];
+    if (!fail) {
         for (int j = 0; j < b->nf; j++) /* counts to starts */
             b->tstart[j + 1] += b->tstart[j];
         b->nt = b->tstart[b->nf];
@@ -209,7 +209,7 @@ static int scan_triples(bispec *b, const unsigned char *reach)
     for (size_t i = 0; i < nblk; i++)
         free(job.list[i]);
     free(job.list);
-    return job.fail || !b->tk ? SL_ENOMEM : SL_OK;
+    return fail || !b->tk ? SL_ENOMEM : SL_OK;
 }
 
 /* The kernel's target order: tiles of BISPEC_TILE x BISPEC_TILE

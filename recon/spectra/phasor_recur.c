@@ -133,15 +133,16 @@ int phasor_recur(const phasor_graph *g, double *E, unsigned char *known, double 
     int j0 = 1, j1 = block_end(g, 1), cur = 0;
     prep(g, j0, j1, buf[0]);
     while (j0 < n) {
-        int j2 = j1 < n ? block_end(g, j1) : n;
+        int more = j1 < n, j2 = more ? block_end(g, j1) : n;
         prep_job next = {g, j1, j2, buf[1 - cur], 0};
-        if (par && j1 < n)
+        if (par && more)
             tpool_submit(g->pool, prep_job_run, &next);
         consume(g, j0, j1, buf[cur], E, known, &wsum, &miss);
-        if (j1 < n)
-            prep_job_run(&next, 0, 1);
-        if (par && j1 < n)
-            tpool_wait(g->pool);
+        if (more) {
+            prep_job_run(&next, 0, 1); /* the caller's share: what is left */
+            if (par)
+                tpool_wait(g->pool);
+        }
         j0 = j1;
         j1 = j2;
         cur = 1 - cur;

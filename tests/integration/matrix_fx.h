@@ -534,10 +534,11 @@ static inline int mx_stage_poke(int port, int reg, int value)
     return rc;
 }
 
-/* Poll the stage itself until wheel is in motion towards slot (TARGET set,
- * STATUS busy): the daemon's `moving` state starts before its commands
- * do.  0, or -1 after timeout_s. */
-static inline int mx_wheel_moving(int port, int wheel, int slot, double timeout_s)
+/* Poll the stage itself until wheel's TARGET is slot (the daemon's
+ * command arrived) and, with busy, its STATUS is busy (in motion): the
+ * daemon's `moving` state starts before its commands do.  0, or -1 after
+ * timeout_s. */
+static inline int mx_wheel_wait(int port, int wheel, int slot, int busy, double timeout_s)
 {
     modbus_t *m = mx_stage_open(port);
     double end = fx_now() + timeout_s;
@@ -545,7 +546,7 @@ static inline int mx_wheel_moving(int port, int wheel, int slot, double timeout_
     while (m && rc != 0 && fx_now() < end) {
         uint16_t r[3];   /* TARGET, POSITION, STATUS */
         if (modbus_read_registers(m, STAGE_REG_WHEEL_BASE(wheel) + STAGE_WREG_TARGET, 3, r) == 3 &&
-            r[0] == slot && (r[2] & STAGE_ST_BUSY))
+            r[0] == slot && (!busy || (r[2] & STAGE_ST_BUSY)))
             rc = 0;
         else
             fx_nap_ms(10);
@@ -555,6 +556,12 @@ static inline int mx_wheel_moving(int port, int wheel, int slot, double timeout_
         modbus_free(m);
     }
     return rc;
+}
+
+/* 0 once the wheel moves towards slot (TARGET slot, STATUS busy). */
+static inline int mx_wheel_moving(int port, int wheel, int slot, double timeout_s)
+{
+    return mx_wheel_wait(port, wheel, slot, 1, timeout_s);
 }
 
 /* The register's value, or -1. */

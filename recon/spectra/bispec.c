@@ -76,6 +76,9 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
         return sl_seterr(err, SL_ERANGE, "bispec: R2 = %d px (1..%d) or "
                          "%d threads (1..64)", o->r2_px, BISPEC_R2_MAX,
                          o->nthreads);
+    if (o->simd < BISPEC_SIMD_AUTO || o->simd > BISPEC_SIMD_AVX512 || !bispec_simd_has(o->simd))
+        return sl_seterr(err, SL_EINVAL, "bispec: this CPU cannot run the %s kernel "
+                         "(simd %d)", bispec_simd_name(o->simd), o->simd);
     int win_ok = o->window == POWSPEC_WIN_NONE ||
                  o->window == POWSPEC_WIN_HANN ||
                  (o->window == POWSPEC_WIN_TUKEY && o->tukey_alpha >= 0 &&
@@ -206,6 +209,7 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
     b->wc = w / 2 + 1;
     b->o = *o;
     b->nthr = o->nthreads;
+    b->simd = o->simd ? o->simd : bispec_simd_best();
     if (!(b->pool = tpool_new(b->nthr, err))) {
         rc = SL_EINVAL; /* the message is tpool_new's */
         goto fail;
@@ -254,3 +258,4 @@ int bispec_nfreq(const bispec *b) { return b ? b->nf : 0; }
 size_t bispec_ndisk(const bispec *b) { return b ? b->nd : 0; }
 size_t bispec_memory_bytes(const bispec *b) { return b ? b->mem : 0; }
 int bispec_batch(const bispec *b) { return b ? b->kb : 0; }
+int bispec_simd(const bispec *b) { return b ? b->simd : 0; }

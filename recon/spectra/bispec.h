@@ -73,6 +73,13 @@
 #define BISPEC_BATCH_BYTES (32u << 20)
 #define BISPEC_R2_MAX 144 /* u2 offsets must fit a uint16 */
 
+enum bispec_simd {
+    BISPEC_SIMD_AUTO = 0,
+    BISPEC_SIMD_PORTABLE, /* plain C with fmaf: any CPU, slow */
+    BISPEC_SIMD_AVX2,     /* AVX2 and FMA */
+    BISPEC_SIMD_AVX512    /* AVX-512F */
+};
+
 typedef struct bispec_opts {
     int r2_px;                    /* radius of the u2 disk (1..144) */
     double rcut_px;               /* cut-off on hypot(p, q); <= 0: none */
@@ -95,6 +102,11 @@ typedef struct bispec_opts {
     int acc_float;                /* complex float accumulators (half memory) */
     int nthreads;                 /* threads for the triple loop, >= 1 */
     int measure;                  /* FFTW_MEASURE (1, default) or ESTIMATE */
+    int simd;                     /* BISPEC_SIMD_*: the triple kernel's
+                                   * instruction set; AUTO (0) the best the
+                                   * CPU has.  Every one gives the same bits
+                                   * (bispec_lanes.c); one the CPU lacks is
+                                   * refused. */
     int refine_iters;             /* least-squares passes after recursion;
                                    * -1: as the recursion's misfit asks
                                    * (phasor_solve) */
@@ -122,6 +134,9 @@ int bispec_nfreq(const bispec *b);       /* |S n H|, DC included */
 size_t bispec_ndisk(const bispec *b);    /* stored u2 offsets (nd) */
 size_t bispec_memory_bytes(const bispec *b);
 int bispec_batch(const bispec *b);       /* frames per batch (16..64) */
+int bispec_simd(const bispec *b);        /* the kernel's BISPEC_SIMD_* */
+const char *bispec_simd_name(int simd);  /* "avx512", ... */
+int bispec_simd_has(int simd);           /* this CPU can run it (AUTO: 1) */
 /* Wall seconds spent in the triple kernel so far (the batches flushed). */
 double bispec_kernel_s(const bispec *b);
 

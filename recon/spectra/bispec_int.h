@@ -49,6 +49,7 @@ struct bispec {
     float *accf, *acc2f;
     float *fb;               /* 2F legs x (kb re + kb im) */
     int kb;                  /* frames per batch (bispec_batch) */
+    int simd;                /* BISPEC_SIMD_*, never AUTO */
     int nb;                  /* frames in the current batch */
     double kernel_s;         /* wall time in bispec_flush's triple loop */
     int n;                   /* frames added */
@@ -88,5 +89,14 @@ int bispec_build_graph(bispec *b, sl_err *err);
 /* Run the triple kernel over the batch of buffered frames
  * (bispec_kernel.c). */
 void bispec_flush(bispec *b);
+
+/* One target's run (bispec_lanes.c): triples t.. of target j while
+ * t < tend and the disk entry is below kend, summed over the batch's nch
+ * vectors of BISPEC_LANES frames into the accumulators; returns the first
+ * triple not summed. */
+typedef int64_t (*bispec_run_fn)(const bispec *b, int j, int64_t t, int64_t tend,
+                                 int kend, int nch);
+bispec_run_fn bispec_lanes_run(int simd, int acc_float, int snr);
+int bispec_simd_best(void); /* BISPEC_SIMD_*, never AUTO */
 
 #endif

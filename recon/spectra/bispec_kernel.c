@@ -17,108 +17,40 @@
 #include <string.h>
 #include <time.h>
 
-/* Horizontal sum as a shallow tree (a serial lane-by-lane sum is a long
- * dependency chain per triple).  By pointer: passing a 64-byte vector by
- * value draws an ABI note. */
-typedef float v4 __attribute__((vector_size(4 * sizeof(float))));
-static inline float hsum(const vk *v)
-{
-    v4 q[BISPEC_LANES / 4];
-    memcpy(q, v, sizeof q);
-    for (int s = BISPEC_LANES / 8; s >= 1; s /= 2)
-        for (int i = 0; i < s; i++)
-            q[i] += q[i + s];
-    return (q[0][0] + q[0][2]) + (q[0][1] + q[0][3]);
-}
-
-#define NCH (BISPEC_BATCH_MAX / BISPEC_LANES)
-
-/* One accumulator flavour of the hot loop (ACC: double or float; SNR:
- * keep the second moment).  For the targets order[o0..o1) and each stored
- * triple, sum over the batch's frames I(u1) I(u2) conj I(u) in float
- * lanes, nch vectors of BISPEC_LANES frames, and add the sum to the
- * accumulators.  Per triple: 2 bytes of index, two gathers from small
- * tables, the u1 and u2 leg blocks, one read-modify-write of the
- * accumulator, which streams through memory once per batch.  Order: a
- * tile of up to 16 neighbouring targets at a time, and within it one row
- * of the u2 disk at a time for every target (each target's triples are
- * sorted by disk entry, so a row is a run of them): a u2 row's legs and
- * the band of u1 legs it pairs with across the tile (~60 and ~250 legs,
- * 30 and 125 kB at 64 frames) are reused 16 times while in L1/L2, where
- * a whole disk per target (2 x 1.3 MB at R2 = 28) overflowed L2.
- * Bits: lane-wise IEEE products and sums (no contraction: ISO C mode
- * compiles with -ffp-contract=off) and a fixed tree, so every clone
- * (AVX-512, AVX2, SSE2) and every thread count gives the same result.
- * Error: each batch's float sum is within ~(log2 K + 4) 2^-24 of the sum
- * of its terms' magnitudes; the accumulators add batches in double. */
-#define KERNEL(NAME, ACC, ACCF, ACC2F)                                        \
-    __attribute__((target_clones("avx512f", "avx2", "default")))             \
-    static void NAME(const bispec *b, int o0, int o1, int nch)               \
-    {                                                                        \
-        const float *fb = b->fb;                                             \
-        const size_t K = (size_t)b->kb;                                      \
-        ACC *acc = b->ACCF;                                                  \
-        ACC *acc2 = ACC2F;                                                   \
-        (void)acc2;                                                          \
-        int64_t cur[BISPEC_TILE * BISPEC_TILE];                              \
-        for (int o = o0, e; o < o1; o = e) {                                 \
-            for (e = o + 1; e < o1 && !b->tbeg[e]; e++)                      \
-                ;                                                            \
-            for (int i = o; i < e; i++)                                      \
-                cur[i - o] = b->tstart[b->order[i]];                         \
-            for (int r = 0; r < b->nrow; r++) {                              \
-                int kend = b->drow[r + 1];                                   \
-                for (int i = o; i < e; i++) {                                \
-                    int j = b->order[i];                                     \
-                    int64_t t = cur[i - o], tend = b->tstart[j + 1];         \
-                    if (t == tend || b->tk[t] >= kend)                       \
-                        continue;                                            \
-                    vk cr[NCH], ci[NCH];                                     \
-                    memcpy(cr, fb + (size_t)j * 2 * K, K * sizeof(float));   \
-                    memcpy(ci, fb + (size_t)j * 2 * K + K, K * sizeof(float)); \
-                    const int32_t *lut = b->lut + b->ubase[j];               \
-                    for (; t < tend && b->tk[t] < kend; t++) {               \
-                        int k = b->tk[t];                                    \
-                        const float *pa = fb + (size_t)lut[-b->doff[k]] * 2 * K; \
-                        const float *pb = fb + (size_t)b->dleg[k] * 2 * K;   \
-                        vk sr = {0}, si = {0}, s2 = {0};                     \
-                        for (int c = 0; c < nch; c++) {                      \
-                            vk ar, ai, br, bi;                               \
-                            size_t l = (size_t)c * BISPEC_LANES;             \
-                            memcpy(&ar, pa + l, sizeof ar);                  \
-                            memcpy(&ai, pa + K + l, sizeof ai);              \
-                            memcpy(&br, pb + l, sizeof br);                  \
-                            memcpy(&bi, pb + K + l, sizeof bi);              \
-                            vk abr = ar * br - ai * bi, abi = ar * bi + ai * br; \
-                            vk xr = abr * cr[c] + abi * ci[c];               \
-                            vk xi = abi * cr[c] - abr * ci[c];               \
-                            sr += xr;                                        \
-                            si += xi;                                        \
-                            if (ACC2F)                                       \
-                                s2 += xr * xr + xi * xi;                     \
-                        }                                                    \
-                        acc[2 * t] += hsum(&sr);                             \
-                        acc[2 * t + 1] += hsum(&si);                         \
-                        if (ACC2F)                                           \
-                            acc2[t] += hsum(&s2);                            \
-                    }                                                        \
-                    cur[i - o] = t;                                          \
-                }                                                            \
-            }                                                                \
-        }                                                                    \
-    }
-KERNEL(kernel_d, double, accd, NULL)
-KERNEL(kernel_ds, double, accd, b->acc2d)
-KERNEL(kernel_f, float, accf, NULL)
-KERNEL(kernel_fs, float, accf, b->acc2f)
-
+/* The targets order[o0..o1) of one batch: a tile of up to 16
+ * neighbouring targets at a time, and within it one row of the u2 disk at
+ * a time for every target (each target's triples are sorted by disk
+ * entry, so a row is a run of them), each run summed by the handle's
+ * bispec_lanes.c path.  Per triple: 2 bytes of index, two gathers from
+ * small tables, the u1 and u2 leg blocks, one read-modify-write of the
+ * accumulator, which streams through memory once per batch.  A u2 row's
+ * legs and the band of u1 legs it pairs with across the tile (~60 and
+ * ~250 legs, 30 and 125 kB at 64 frames) are reused 16 times while in
+ * L1/L2, where a whole disk per target (2 x 1.3 MB at R2 = 28) overflowed
+ * L2.  Each triple is summed by one thread in a fixed order, so the bits
+ * do not depend on the thread count.  Error: each batch's float sum is
+ * within ~(log2 K + 4) 2^-24 of the sum of its terms' magnitudes; the
+ * accumulators add batches in their own precision. */
 static void kernel(const bispec *b, int o0, int o1)
 {
     int nch = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES;
-    if (b->accd)
-        (b->acc2d ? kernel_ds : kernel_d)(b, o0, o1, nch);
-    else
-        (b->acc2f ? kernel_fs : kernel_f)(b, o0, o1, nch);
+    bispec_run_fn run = bispec_lanes_run(b->simd, !b->accd, b->acc2d || b->acc2f);
+    int64_t cur[BISPEC_TILE * BISPEC_TILE];
+    for (int o = o0, e; o < o1; o = e) {
+        for (e = o + 1; e < o1 && !b->tbeg[e]; e++)
+            ;
+        for (int i = o; i < e; i++)
+            cur[i - o] = b->tstart[b->order[i]];
+        for (int r = 0; r < b->nrow; r++) {
+            int kend = b->drow[r + 1];
+            for (int i = o; i < e; i++) {
+                int j = b->order[i];
+                int64_t t = cur[i - o], tend = b->tstart[j + 1];
+                if (t < tend && b->tk[t] < kend)
+                    cur[i - o] = run(b, j, t, tend, kend, nch);
+            }
+        }
+    }
 }
 
 /* tpool job: thread tid sums the triples of its range of targets. */

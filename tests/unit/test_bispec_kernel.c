@@ -23,9 +23,10 @@ static float *random_frames(int n, int nfr, uint64_t seed)
     return fr;
 }
 
-/* The flat sums (bispec_partial) of nfr frames on nthr threads. */
-static double *sums(const float *fr, int n, int nfr, int nthr, int snr, size_t *len,
-                    int *kb)
+/* The flat sums (bispec_partial) of nfr frames on nthr threads, with
+ * the kernel's instruction set simd and float accumulators or not. */
+static double *sums_on(const float *fr, int n, int nfr, int nthr, int snr, int simd,
+                       int accf, size_t *len, int *kb)
 {
     bispec_opts o;
     bispec_opts_defaults(&o);
@@ -34,6 +35,8 @@ static double *sums(const float *fr, int n, int nfr, int nthr, int snr, size_t *
     o.measure = 0;
     o.nthreads = nthr;
     o.weight = snr ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
+    o.simd = simd;
+    o.acc_float = accf;
     bispec *b = bispec_new(n, n, &o, NULL);
     if (!b)
         return NULL;
@@ -45,6 +48,57 @@ static double *sums(const float *fr, int n, int nfr, int nthr, int snr, size_t *
     bispec_partial(b, buf);
     bispec_free(b);
     return buf;
+}
+
+static double *sums(const float *fr, int n, int nfr, int nthr, int snr, size_t *len,
+                    int *kb)
+{
+    return sums_on(fr, n, nfr, nthr, snr, BISPEC_SIMD_AUTO, 0, len, kb);
+}
+
+/* Every instruction set this CPU has (portable C with fmaf, AVX2 + FMA,
+ * AVX-512) gives the same accumulators bit for bit, with and without the
+ * second moment, in double and float accumulators, with a partial batch. */
+TEST(bits_equal_on_every_simd_path)
+{
+    int n = 40, nfr = 45;
+    float *fr = random_frames(n, nfr, 17);
+    CHECK(bispec_simd_has(BISPEC_SIMD_PORTABLE), "the portable kernel must run anywhere");
+    int paths = 0;
+    for (int cfg = 0; cfg < 4; cfg++) {
+        int snr = cfg & 1, accf = cfg >> 1, kb = 0;
+        size_t len1 = 0;
+        double *ref = sums_on(fr, n, nfr, 2, snr, BISPEC_SIMD_PORTABLE, accf, &len1, &kb);
+        CHECK(ref, "bispec_new (portable) failed");
+        for (int simd = BISPEC_SIMD_AVX2; simd <= BISPEC_SIMD_AVX512; simd++) {
+            if (!bispec_simd_has(simd))
+                continue;
+            paths += cfg == 0;
+            size_t len = 0;
+            double *got = sums_on(fr, n, nfr, 2, snr, simd, accf, &len, &kb);
+            CHECK(got && len == len1, "%s: %zu sums, portable %zu", bispec_simd_name(simd),
+                  len, len1);
+            size_t diff = 0;
+            for (size_t k = 0; k < len; k++)
+                diff += memcmp(&got[k], &ref[k], sizeof *got) != 0;
+            free(got);
+            CHECK(diff == 0, "%s (snr %d, float acc %d): %zu of %zu sums differ from "
+                  "portable", bispec_simd_name(simd), snr, accf, diff, len);
+        }
+        free(ref);
+    }
+    /* A path the CPU lacks is refused by name, never run. */
+    for (int simd = BISPEC_SIMD_AVX2; simd <= BISPEC_SIMD_AVX512; simd++)
+        if (!bispec_simd_has(simd)) {
+            bispec_opts o;
+            bispec_opts_defaults(&o);
+            o.simd = simd;
+            sl_err e = {0};
+            CHECK(!bispec_new(n, n, &o, &e) && strstr(e.msg, bispec_simd_name(simd)),
+                  "a missing %s was not refused by name: %s", bispec_simd_name(simd), e.msg);
+        }
+    printf("# %d vector path(s) compared with the portable one\n", paths);
+    free(fr);
 }
 
 /* 1, 2, 3 and 7 threads: every accumulator equal bit for bit (the triple
@@ -168,4 +222,4 @@ TEST(float_sums_within_bound)
     CHECK(worst > 0, "no rounding at all: the kernel is not summing in float");
 }
 
-TC_MAIN(TC_CASE(bits_equal_on_any_thread_count), TC_CASE(phases_equal_on_any_thread_count), TC_CASE(float_sums_within_bound))
+TC_MAIN(TC_CASE(bits_equal_on_every_simd_path), TC_CASE(bits_equal_on_any_thread_count), TC_CASE(phases_equal_on_any_thread_count), TC_CASE(float_sums_within_bound))

@@ -39,11 +39,35 @@
 #include <immintrin.h>
 #endif
 
-/* Leg pointers of triple t of target j (lut: the target's lut row). */
-#define LEGS(t)                                                              \
-    int k_ = b->tk[t];                                                       \
-    const float *pa = fb + (size_t)lut[-b->doff[k_]] * 2 * K;                \
-    const float *pb = fb + (size_t)b->dleg[k_] * 2 * K
+/* A run function from a triple body TRI(b, pa, pb, pc, t, nch, K): the
+ * triples of target j from t on while below tend and in the disk row
+ * (entries below kend).  The u1 legs are scattered over the batch buffer
+ * (L2 or beyond) and their addresses come from a chain of three table
+ * reads, so the legs of the triple PREFETCH_AHEAD on are asked for early;
+ * the u2 legs of a row are few and stay in L1. */
+#define PREFETCH_AHEAD 4
+#define RUN(NAME, ATTR, TRI)                                                 \
+    ATTR static int64_t NAME(const bispec *b, int j, int64_t t, int64_t tend, \
+                             int kend, int nch)                              \
+    {                                                                        \
+        const size_t K = (size_t)b->kb;                                      \
+        const float *fb = b->fb, *pc = fb + (size_t)j * 2 * K;               \
+        const int32_t *lut = b->lut + b->ubase[j];                           \
+        for (; t < tend && b->tk[t] < kend; t++) {                           \
+            if (t + PREFETCH_AHEAD < tend) {                                 \
+                int kp = b->tk[t + PREFETCH_AHEAD];                          \
+                const float *pp = fb + (size_t)lut[-b->doff[kp]] * 2 * K;    \
+                for (int c = 0; c < nch; c++) {                              \
+                    __builtin_prefetch(pp + c * BISPEC_LANES);               \
+                    __builtin_prefetch(pp + K + c * BISPEC_LANES);           \
+                }                                                            \
+            }                                                                \
+            int k = b->tk[t];                                                \
+            TRI(b, fb + (size_t)lut[-b->doff[k]] * 2 * K,                    \
+                fb + (size_t)b->dleg[k] * 2 * K, pc, t, nch, K);             \
+        }                                                                    \
+        return t;                                                            \
+    }
 
 /* The sums re, im (and s2) of triple t into the accumulators. */
 #define STORE(ACC, SNR, re, im, s2)                                          \
@@ -72,40 +96,37 @@ static float tree16(const float *s)
     return (q[0] + q[2]) + (q[1] + q[3]);
 }
 
-#define RUN_PORTABLE(NAME, ACC, SNR)                                         \
-    static int64_t NAME(const bispec *b, int j, int64_t t, int64_t tend,     \
-                        int kend, int nch)                                   \
+#define TRI_PORTABLE(NAME, ACC, SNR)                                         \
+    static inline void NAME(const bispec *b, const float *pa, const float *pb, \
+                            const float *pc, int64_t t, int nch, size_t K)   \
     {                                                                        \
-        const size_t K = (size_t)b->kb;                                      \
-        const float *fb = b->fb, *pc = fb + (size_t)j * 2 * K;               \
-        const int32_t *lut = b->lut + b->ubase[j];                           \
-        for (; t < tend && b->tk[t] < kend; t++) {                           \
-            LEGS(t);                                                         \
-            float sr[16] = {0}, si[16] = {0}, s2[16] = {0};                  \
-            for (size_t l = 0; l < (size_t)nch * 16; l++) {                  \
-                float ar = pa[l], ai = pa[K + l], br = pb[l], bi = pb[K + l]; \
-                float cr = pc[l], ci = pc[K + l];                            \
-                float abr = fmaf(ar, br, -(ai * bi));                        \
-                float abi = fmaf(ar, bi, ai * br);                           \
-                if (!(SNR)) {                                                \
-                    sr[l % 16] = fmaf(abi, ci, fmaf(abr, cr, sr[l % 16]));   \
-                    si[l % 16] = fmaf(-abr, ci, fmaf(abi, cr, si[l % 16]));  \
-                } else {                                                     \
-                    float xr = fmaf(abr, cr, abi * ci);                      \
-                    float xi = fmaf(abi, cr, -(abr * ci));                   \
-                    sr[l % 16] += xr;                                        \
-                    si[l % 16] += xi;                                        \
-                    s2[l % 16] = fmaf(xi, xi, fmaf(xr, xr, s2[l % 16]));     \
-                }                                                            \
+        float sr[16] = {0}, si[16] = {0}, s2[16] = {0};                      \
+        for (size_t l = 0; l < (size_t)nch * 16; l++) {                      \
+            float ar = pa[l], ai = pa[K + l], br = pb[l], bi = pb[K + l];    \
+            float cr = pc[l], ci = pc[K + l];                                \
+            float abr = fmaf(ar, br, -(ai * bi));                            \
+            float abi = fmaf(ar, bi, ai * br);                               \
+            if (!(SNR)) {                                                    \
+                sr[l % 16] = fmaf(abi, ci, fmaf(abr, cr, sr[l % 16]));       \
+                si[l % 16] = fmaf(-abr, ci, fmaf(abi, cr, si[l % 16]));      \
+            } else {                                                         \
+                float xr = fmaf(abr, cr, abi * ci);                          \
+                float xi = fmaf(abi, cr, -(abr * ci));                       \
+                sr[l % 16] += xr;                                            \
+                si[l % 16] += xi;                                            \
+                s2[l % 16] = fmaf(xi, xi, fmaf(xr, xr, s2[l % 16]));         \
             }                                                                \
-            STORE(ACC, SNR, tree16(sr), tree16(si), tree16(s2));             \
         }                                                                    \
-        return t;                                                            \
+        STORE(ACC, SNR, tree16(sr), tree16(si), tree16(s2));                 \
     }
-RUN_PORTABLE(run_p_d, double, 0)
-RUN_PORTABLE(run_p_ds, double, 1)
-RUN_PORTABLE(run_p_f, float, 0)
-RUN_PORTABLE(run_p_fs, float, 1)
+TRI_PORTABLE(tri_p_d, double, 0)
+TRI_PORTABLE(tri_p_ds, double, 1)
+TRI_PORTABLE(tri_p_f, float, 0)
+TRI_PORTABLE(tri_p_fs, float, 1)
+RUN(run_p_d, , tri_p_d)
+RUN(run_p_ds, , tri_p_ds)
+RUN(run_p_f, , tri_p_f)
+RUN(run_p_fs, , tri_p_fs)
 
 #ifdef LANES_X86
 /* ---- x86: the tree's last two steps on [x0..3] and [y0..3] ---------- */
@@ -127,46 +148,43 @@ __attribute__((target("avx512f"))) static inline __m128 tree512(__m512 a, __m512
     return tree4x2(_mm512_castps512_ps128(s), _mm512_extractf32x4_ps(s, 2));
 }
 
-#define RUN_AVX512(NAME, ACC, SNR)                                           \
-    __attribute__((target("avx512f")))                                       \
-    static int64_t NAME(const bispec *b, int j, int64_t t, int64_t tend,     \
-                        int kend, int nch)                                   \
+#define ZATTR __attribute__((target("avx512f")))
+#define TRI_AVX512(NAME, ACC, SNR)                                           \
+    ZATTR static inline void NAME(const bispec *b, const float *pa, const float *pb, \
+                                  const float *pc, int64_t t, int nch, size_t K) \
     {                                                                        \
-        const size_t K = (size_t)b->kb;                                      \
-        const float *fb = b->fb, *pc = fb + (size_t)j * 2 * K;               \
-        const int32_t *lut = b->lut + b->ubase[j];                           \
-        for (; t < tend && b->tk[t] < kend; t++) {                           \
-            LEGS(t);                                                         \
-            __m512 sr = _mm512_setzero_ps(), si = sr, s2 = sr;               \
-            for (size_t l = 0; l < (size_t)nch * 16; l += 16) {              \
-                __m512 ar = _mm512_loadu_ps(pa + l), ai = _mm512_loadu_ps(pa + K + l); \
-                __m512 br = _mm512_loadu_ps(pb + l), bi = _mm512_loadu_ps(pb + K + l); \
-                __m512 cr = _mm512_loadu_ps(pc + l), ci = _mm512_loadu_ps(pc + K + l); \
-                __m512 abr = _mm512_fmsub_ps(ar, br, _mm512_mul_ps(ai, bi)); \
-                __m512 abi = _mm512_fmadd_ps(ar, bi, _mm512_mul_ps(ai, br)); \
-                if (!(SNR)) {                                                \
-                    sr = _mm512_fmadd_ps(abi, ci, _mm512_fmadd_ps(abr, cr, sr)); \
-                    si = _mm512_fnmadd_ps(abr, ci, _mm512_fmadd_ps(abi, cr, si)); \
-                } else {                                                     \
-                    __m512 xr = _mm512_fmadd_ps(abr, cr, _mm512_mul_ps(abi, ci)); \
-                    __m512 xi = _mm512_fmsub_ps(abi, cr, _mm512_mul_ps(abr, ci)); \
-                    sr = _mm512_add_ps(sr, xr);                              \
-                    si = _mm512_add_ps(si, xi);                              \
-                    s2 = _mm512_fmadd_ps(xi, xi, _mm512_fmadd_ps(xr, xr, s2)); \
-                }                                                            \
+        __m512 sr = _mm512_setzero_ps(), si = sr, s2 = sr;                   \
+        for (size_t l = 0; l < (size_t)nch * 16; l += 16) {                  \
+            __m512 ar = _mm512_loadu_ps(pa + l), ai = _mm512_loadu_ps(pa + K + l); \
+            __m512 br = _mm512_loadu_ps(pb + l), bi = _mm512_loadu_ps(pb + K + l); \
+            __m512 cr = _mm512_loadu_ps(pc + l), ci = _mm512_loadu_ps(pc + K + l); \
+            __m512 abr = _mm512_fmsub_ps(ar, br, _mm512_mul_ps(ai, bi));     \
+            __m512 abi = _mm512_fmadd_ps(ar, bi, _mm512_mul_ps(ai, br));     \
+            if (!(SNR)) {                                                    \
+                sr = _mm512_fmadd_ps(abi, ci, _mm512_fmadd_ps(abr, cr, sr)); \
+                si = _mm512_fnmadd_ps(abr, ci, _mm512_fmadd_ps(abi, cr, si)); \
+            } else {                                                         \
+                __m512 xr = _mm512_fmadd_ps(abr, cr, _mm512_mul_ps(abi, ci)); \
+                __m512 xi = _mm512_fmsub_ps(abi, cr, _mm512_mul_ps(abr, ci)); \
+                sr = _mm512_add_ps(sr, xr);                                  \
+                si = _mm512_add_ps(si, xi);                                  \
+                s2 = _mm512_fmadd_ps(xi, xi, _mm512_fmadd_ps(xr, xr, s2));   \
             }                                                                \
-            float h[4], h2[4] = {0};                                         \
-            _mm_storeu_ps(h, tree512(sr, si));                               \
-            if (SNR)                                                         \
-                _mm_storeu_ps(h2, tree512(s2, s2));                          \
-            STORE(ACC, SNR, h[0], h[1], h2[0]);                              \
         }                                                                    \
-        return t;                                                            \
+        float h[4], h2[4] = {0};                                             \
+        _mm_storeu_ps(h, tree512(sr, si));                                   \
+        if (SNR)                                                             \
+            _mm_storeu_ps(h2, tree512(s2, s2));                              \
+        STORE(ACC, SNR, h[0], h[1], h2[0]);                                  \
     }
-RUN_AVX512(run_z_d, double, 0)
-RUN_AVX512(run_z_ds, double, 1)
-RUN_AVX512(run_z_f, float, 0)
-RUN_AVX512(run_z_fs, float, 1)
+TRI_AVX512(tri_z_d, double, 0)
+TRI_AVX512(tri_z_ds, double, 1)
+TRI_AVX512(tri_z_f, float, 0)
+TRI_AVX512(tri_z_fs, float, 1)
+RUN(run_z_d, ZATTR, tri_z_d)
+RUN(run_z_ds, ZATTR, tri_z_ds)
+RUN(run_z_f, ZATTR, tri_z_f)
+RUN(run_z_fs, ZATTR, tri_z_fs)
 
 /* ---- AVX2 + FMA: a 16-lane vector is two 8-lane halves, lo and hi -- */
 
@@ -198,34 +216,31 @@ __attribute__((target("avx2,fma"))) static inline __m128 tree256(__m256 alo, __m
         }                                                                    \
     } while (0)
 
-#define RUN_AVX2(NAME, ACC, SNR)                                             \
-    __attribute__((target("avx2,fma")))                                      \
-    static int64_t NAME(const bispec *b, int j, int64_t t, int64_t tend,     \
-                        int kend, int nch)                                   \
+#define YATTR __attribute__((target("avx2,fma")))
+#define TRI_AVX2(NAME, ACC, SNR)                                             \
+    YATTR static inline void NAME(const bispec *b, const float *pa, const float *pb, \
+                                  const float *pc, int64_t t, int nch, size_t K) \
     {                                                                        \
-        const size_t K = (size_t)b->kb;                                      \
-        const float *fb = b->fb, *pc = fb + (size_t)j * 2 * K;               \
-        const int32_t *lut = b->lut + b->ubase[j];                           \
-        for (; t < tend && b->tk[t] < kend; t++) {                           \
-            LEGS(t);                                                         \
-            __m256 z = _mm256_setzero_ps();                                  \
-            __m256 srl = z, sil = z, s2l = z, srh = z, sih = z, s2h = z;     \
-            for (size_t l = 0; l < (size_t)nch * 16; l += 16) {              \
-                HALF256(SNR, 0, srl, sil, s2l);                              \
-                HALF256(SNR, 8, srh, sih, s2h);                              \
-            }                                                                \
-            float h[4], h2[4] = {0};                                         \
-            _mm_storeu_ps(h, tree256(srl, srh, sil, sih));                   \
-            if (SNR)                                                         \
-                _mm_storeu_ps(h2, tree256(s2l, s2h, s2l, s2h));              \
-            STORE(ACC, SNR, h[0], h[1], h2[0]);                              \
+        __m256 z = _mm256_setzero_ps();                                      \
+        __m256 srl = z, sil = z, s2l = z, srh = z, sih = z, s2h = z;         \
+        for (size_t l = 0; l < (size_t)nch * 16; l += 16) {                  \
+            HALF256(SNR, 0, srl, sil, s2l);                                  \
+            HALF256(SNR, 8, srh, sih, s2h);                                  \
         }                                                                    \
-        return t;                                                            \
+        float h[4], h2[4] = {0};                                             \
+        _mm_storeu_ps(h, tree256(srl, srh, sil, sih));                       \
+        if (SNR)                                                             \
+            _mm_storeu_ps(h2, tree256(s2l, s2h, s2l, s2h));                  \
+        STORE(ACC, SNR, h[0], h[1], h2[0]);                                  \
     }
-RUN_AVX2(run_y_d, double, 0)
-RUN_AVX2(run_y_ds, double, 1)
-RUN_AVX2(run_y_f, float, 0)
-RUN_AVX2(run_y_fs, float, 1)
+TRI_AVX2(tri_y_d, double, 0)
+TRI_AVX2(tri_y_ds, double, 1)
+TRI_AVX2(tri_y_f, float, 0)
+TRI_AVX2(tri_y_fs, float, 1)
+RUN(run_y_d, YATTR, tri_y_d)
+RUN(run_y_ds, YATTR, tri_y_ds)
+RUN(run_y_f, YATTR, tri_y_f)
+RUN(run_y_fs, YATTR, tri_y_fs)
 #endif /* LANES_X86 */
 
 int bispec_simd_best(void)

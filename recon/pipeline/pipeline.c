@@ -48,6 +48,7 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
     po.window = o->window;
     po.tukey_alpha = o->tukey_alpha;
     po.measure = o->fftw_measure;
+    po.nthreads = o->nthreads > 0 ? o->nthreads : 2; /* as direct_opts */
     po.bias = g > 0 ? POWSPEC_BIAS_PHOTON : POWSPEC_BIAS_FLOOR;
     po.adu_per_photon = g;
     if (g > 0)

@@ -9,30 +9,12 @@
 #include <complex.h>
 #include <fftw3.h>
 
-#include "powspec.h"
+#include "powspec_int.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-struct powspec {
-    int w, h, wc;         /* wc = w/2 + 1 columns of the half plane */
-    powspec_opts o;
-    float *win;           /* w*h window or NULL */
-    float *in;            /* w*h windowed frame (FFT input) */
-    fftwf_complex *out;   /* h*wc spectrum */
-    fftwf_plan plan;
-    double *ps;           /* h*wc sum of |F|^2 */
-    double complex *ft;   /* h*wc sum of F */
-    double complex *aft;  /* h*wc sum of F aligned (opts.aligned) or NULL */
-    double complex *ex, *ey; /* wc and h: one frame's alignment ramps */
-    double flux, pbias;   /* sums of frame flux and photon (+ read) bias */
-    double w2flux;        /* sum of sum(w^2 frame): the photon noise's share */
-    double w2;            /* sum w^2: white noise of variance s^2 adds s^2 w2 */
-    double rbias;         /* read-noise bias per frame: rn^2 sum w^2 */
-    int n;
-    sl_err err;
-};
 
 void powspec_opts_defaults(powspec_opts *o)
 {
@@ -110,6 +92,10 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
                   o->read_noise_adu, o->floor_rho);
         return NULL;
     }
+    if (o->nthreads < 0 || o->nthreads > 64) {
+        sl_seterr(err, SL_EINVAL, "powspec: %d threads (0..64)", o->nthreads);
+        return NULL;
+    }
     powspec *p = calloc(1, sizeof *p);
     if (!p)
         goto fail_nomem;
@@ -118,19 +104,28 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
     p->h = h;
     p->wc = w / 2 + 1;
     p->o = *o;
-    p->in = fftwf_alloc_real(n);
-    p->out = fftwf_alloc_complex(nh);
+    /* One slot per frame in flight: with one thread a frame is summed
+     * as it comes, so nothing is held. */
+    p->ns = o->nthreads > 1 ? POWSPEC_SLOTS : 1;
+    p->npad = (n + 15) / 16 * 16;
+    p->nhp = (nh + 7) / 8 * 8;
+    p->in = fftwf_alloc_real(p->ns * p->npad);
+    p->out = fftwf_alloc_complex(p->ns * p->nhp);
+    p->sflux = malloc((size_t)p->ns * sizeof *p->sflux);
+    p->sw2 = malloc((size_t)p->ns * sizeof *p->sw2);
     p->ps = calloc(nh, sizeof *p->ps);
     p->ft = calloc(nh, sizeof *p->ft);
-    if (!p->in || !p->out || !p->ps || !p->ft)
+    if (!p->in || !p->out || !p->sflux || !p->sw2 || !p->ps || !p->ft)
         goto fail_alloc;
     if (o->aligned) {
         p->aft = calloc(nh, sizeof *p->aft);
-        p->ex = malloc((size_t)p->wc * sizeof *p->ex);
-        p->ey = malloc((size_t)h * sizeof *p->ey);
+        p->ex = malloc((size_t)p->ns * p->wc * sizeof *p->ex);
+        p->ey = malloc((size_t)p->ns * h * sizeof *p->ey);
         if (!p->aft || !p->ex || !p->ey)
             goto fail_alloc;
     }
+    if (!(p->pool = tpool_new(o->nthreads > 1 ? o->nthreads : 1, err)))
+        goto fail_pool;
     if (o->window != POWSPEC_WIN_NONE) {
         p->win = malloc(n * sizeof *p->win);
         if (!p->win)
@@ -149,7 +144,10 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
         goto fail_alloc;
     return p;
 fail_alloc:
+    sl_seterr(err, SL_ENOMEM, "powspec: out of memory for %dx%d", w, h);
+fail_pool: /* tpool_new said why */
     powspec_free(p);
+    return NULL;
 fail_nomem:
     sl_seterr(err, SL_ENOMEM, "powspec: out of memory for %dx%d", w, h);
     return NULL;
@@ -161,8 +159,11 @@ void powspec_free(powspec *p)
         return;
     if (p->plan)
         fftwf_destroy_plan(p->plan);
+    tpool_free(p->pool);
     fftwf_free(p->in);
     fftwf_free(p->out);
+    free(p->sflux);
+    free(p->sw2);
     free(p->win);
     free(p->ps);
     free(p->ft);
@@ -177,60 +178,12 @@ const char *powspec_errmsg(const powspec *p)
     return p ? p->err.msg : "no powspec handle";
 }
 
-/* The frame's spectrum moved to its first-harmonic centroid (the phase
- * of F at (1, 0) and (0, 1) is the circular centroid's), added to aft:
- * per-frame tip-tilt leaves the long exposure.  2 w h flops a frame. */
-static void add_aligned(powspec *p)
-{
-    double ax = cargf(p->out[1]), ay = cargf(p->out[p->wc]);
-    for (int i = 0; i < p->wc; i++)
-        p->ex[i] = cexp(-I * i * ax);
-    for (int j = 0; j < p->h; j++)
-        p->ey[j] = cexp(-I * (j <= p->h / 2 ? j : j - p->h) * ay);
-    for (int j = 0; j < p->h; j++)
-        for (int i = 0; i < p->wc; i++) {
-            size_t k = (size_t)j * p->wc + i;
-            p->aft[k] += p->out[k] * p->ex[i] * p->ey[j];
-        }
-}
+int powspec_nframes(const powspec *p) { return p ? p->n + p->nstaged : 0; }
 
-int powspec_add(powspec *p, const float *frame)
+double powspec_mean_flux(powspec *p)
 {
-    if (!p || !frame)
-        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
-                         "powspec_add: NULL argument");
-    size_t n = (size_t)p->w * p->h, nh = (size_t)p->h * p->wc;
-    double flux = 0, w2flux = 0;
-    for (size_t i = 0; i < n; i++) {
-        float v = frame[i];
-        if (!isfinite(v))
-            return sl_seterr(&p->err, SL_EDATA,
-                             "powspec_add: frame %d pixel %zu is not finite",
-                             p->n, i);
-        float wv = p->win ? p->win[i] : 1.0f;
-        p->in[i] = wv * v;
-        flux += v;
-        w2flux += (double)wv * wv * v;
-    }
-    fftwf_execute(p->plan);
-    for (size_t k = 0; k < nh; k++) {
-        double re = crealf(p->out[k]), im = cimagf(p->out[k]);
-        p->ps[k] += re * re + im * im;
-        p->ft[k] += re + I * im;
-    }
-    if (p->aft)
-        add_aligned(p);
-    p->flux += flux;
-    p->w2flux += w2flux;
-    p->pbias += p->o.adu_per_photon * w2flux + p->rbias;
-    p->n++;
-    return SL_OK;
-}
-
-int powspec_nframes(const powspec *p) { return p ? p->n : 0; }
-
-double powspec_mean_flux(const powspec *p)
-{
+    if (p)
+        powspec_flush(p);
     return p && p->n ? p->flux / p->n : 0.0;
 }
 
@@ -302,8 +255,10 @@ static double floor_level(const powspec *p, int *speckle, double *outer)
     return m[0] + m[1] ? (s[0] + s[1]) / (m[0] + m[1]) / p->n : 0.0;
 }
 
-double powspec_bias(const powspec *p)
+double powspec_bias(powspec *p)
 {
+    if (p)
+        powspec_flush(p);
     if (!p || !p->n)
         return 0.0;
     if (p->o.bias == POWSPEC_BIAS_PHOTON)
@@ -316,9 +271,11 @@ double powspec_bias(const powspec *p)
     return 0.0;
 }
 
-int powspec_floor_gain(const powspec *p, double white_adu, double *adu_per_photon)
+int powspec_floor_gain(powspec *p, double white_adu, double *adu_per_photon)
 {
     *adu_per_photon = 0;
+    if (p)
+        powspec_flush(p);
     if (!p || !p->n || p->o.bias != POWSPEC_BIAS_FLOOR || !(p->w2flux > 0))
         return SL_EDATA;
     int speckle;
@@ -341,6 +298,7 @@ int powspec_result(powspec *p, double *ps)
     if (!p || !ps)
         return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
                          "powspec_result: NULL argument");
+    powspec_flush(p);
     if (!p->n)
         return sl_seterr(&p->err, SL_EDATA, "powspec_result: no frames");
     double b = powspec_bias(p), inv = 1.0 / p->n;
@@ -353,8 +311,10 @@ int powspec_result(powspec *p, double *ps)
     return SL_OK;
 }
 
-int powspec_mean_ft(const powspec *p, double complex *ft)
+int powspec_mean_ft(powspec *p, double complex *ft)
 {
+    if (p)
+        powspec_flush(p);
     if (!p || !ft || !p->n)
         return SL_EINVAL;
     double inv = 1.0 / p->n;
@@ -367,8 +327,10 @@ int powspec_mean_ft(const powspec *p, double complex *ft)
     return SL_OK;
 }
 
-int powspec_aligned_power(const powspec *p, double *le)
+int powspec_aligned_power(powspec *p, double *le)
 {
+    if (p)
+        powspec_flush(p);
     if (!p || !le || !p->aft || p->n < 2)
         return SL_EINVAL;
     double inv = 1.0 / p->n;
@@ -473,8 +435,9 @@ static void complex_in(const double *buf, size_t n, double complex *z)
         z[k] = buf[2 * k] + I * buf[2 * k + 1];
 }
 
-size_t powspec_partial(const powspec *p, double *buf)
+size_t powspec_partial(powspec *p, double *buf)
 {
+    powspec_flush(p);
     size_t nh = (size_t)p->h * p->wc, na = p->aft ? 2 * nh : 0, e = 3 * nh + na;
     if (buf) {
         memcpy(buf, p->ps, nh * sizeof *buf);
@@ -491,6 +454,7 @@ size_t powspec_partial(const powspec *p, double *buf)
 
 void powspec_partial_load(powspec *p, const double *buf)
 {
+    powspec_flush(p); /* the staged frames are replaced too */
     size_t nh = (size_t)p->h * p->wc, na = p->aft ? 2 * nh : 0, e = 3 * nh + na;
     memcpy(p->ps, buf, nh * sizeof *buf);
     complex_in(buf + nh, nh, p->ft);

@@ -44,13 +44,20 @@ typedef struct powspec_opts {
     double floor_rho;      /* floor region rho > floor_rho (default 1.0) */
     int measure;           /* 1: FFTW_MEASURE (default), 0: ESTIMATE */
     int aligned;           /* 1: also the aligned mean spectrum (default 0) */
+    int nthreads;          /* threads for the frames' transforms (0, 1: the
+                            * caller's alone, each frame summed as it
+                            * comes); the sums are the same bits on any
+                            * count (powspec_frames.c) */
 } powspec_opts;
 
 void powspec_opts_defaults(powspec_opts *o);
 
 typedef struct powspec powspec;
 
-/* Plans and accumulators for w x h frames (the only allocation). */
+/* Plans, accumulators and frame slots for w x h frames (the only
+ * allocation).  Frames are summed as they come with one thread; with
+ * more, up to POWSPEC_SLOTS are staged and transformed together, and
+ * every result (and powspec_partial) sums the staged ones first. */
 powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err);
 void powspec_free(powspec *p);
 const char *powspec_errmsg(const powspec *p);
@@ -64,9 +71,9 @@ int powspec_nframes(const powspec *p);
  * the signal is below the noise).  ps: w*h, FFT order. */
 int powspec_result(powspec *p, double *ps);
 /* The constant subtracted by powspec_result (0 for BIAS_NONE). */
-double powspec_bias(const powspec *p);
+double powspec_bias(powspec *p);
 /* Mean of sum(frame) over the frames (no window). */
-double powspec_mean_flux(const powspec *p);
+double powspec_mean_flux(powspec *p);
 /* The detector's gain (ADU per photon) from the data alone, for frames
  * whose noise is photon noise plus white noise of white_adu rms per
  * pixel (read noise, sky, quantisation: the sky's temporal rms): the
@@ -75,16 +82,16 @@ double powspec_mean_flux(const powspec *p);
  * when the floor cannot say: another bias mode, speckle reaching the
  * floor's region (sampling coarser than Nyquist), no flux, or white
  * noise owning over 80 % of the floor. */
-int powspec_floor_gain(const powspec *p, double white_adu, double *adu_per_photon);
+int powspec_floor_gain(powspec *p, double white_adu, double *adu_per_photon);
 /* Mean of the frames' FFTs (windowed), w*h, FFT order. */
-int powspec_mean_ft(const powspec *p, double complex *ft);
+int powspec_mean_ft(powspec *p, double complex *ft);
 
 /* With opts.aligned: |mean of the frames' spectra, each moved to its
  * first-harmonic centroid|^2, less its finite-sample bias (var / (n - 1):
  * the noise's share goes too), w*h, FFT order.  Over powspec_result's
  * spectrum plus its bias it is the tilt-removed spectral ratio (stf.h).
  * SL_EINVAL without opts.aligned or with fewer than 2 frames. */
-int powspec_aligned_power(const powspec *p, double *le);
+int powspec_aligned_power(powspec *p, double *le);
 
 /* The apodisation window (separable, periodic form: pixel x of n gets
  * 0.5 (1 - cos(2 pi x / n)) for Hann; Tukey is flat except for cosine
@@ -125,7 +132,7 @@ int powspec_support(const double *ps, int w, int h, double nsigma,
  * them), for a sequence split over processes: powspec_sums writes them to
  * buf (NULL: none) and returns how many; powspec_partial_load replaces this
  * handle's with buf's, e.g. the element-wise sum over every part. */
-size_t powspec_partial(const powspec *p, double *buf);
+size_t powspec_partial(powspec *p, double *buf);
 void powspec_partial_load(powspec *p, const double *buf);
 
 #endif

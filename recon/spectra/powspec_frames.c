@@ -1,0 +1,107 @@
+/* powspec_frames.c - frames into a powspec (powspec.h): each frame is
+ * windowed into a slot; when the slots are full (or a result is asked
+ * for) the handle's threads transform them, slot s on thread s mod n, and
+ * then add them to the sums, each thread owning a band of rows of the
+ * half plane and adding the slots in frame order.  So every sum takes the
+ * same operations in the same order as one frame at a time on one thread:
+ * the same bits on any thread count.  The transforms were the power
+ * spectrum pass's serial part (12 % of a one-thread direct run at
+ * 512^2 x 400).
+ */
+#include "powspec_int.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Slot s's alignment ramps: the frame's spectrum moved to its
+ * first-harmonic centroid (the phase of F at (1, 0) and (0, 1) is the
+ * circular centroid's) leaves per-frame tip-tilt out of the long
+ * exposure. */
+static void ramps(powspec *p, int s)
+{
+    const fftwf_complex *out = p->out + (size_t)s * p->nhp;
+    double complex *ex = p->ex + (size_t)s * p->wc, *ey = p->ey + (size_t)s * p->h;
+    double ax = cargf(out[1]), ay = cargf(out[p->wc]);
+    for (int i = 0; i < p->wc; i++)
+        ex[i] = cexp(-I * i * ax);
+    for (int j = 0; j < p->h; j++)
+        ey[j] = cexp(-I * (j <= p->h / 2 ? j : j - p->h) * ay);
+}
+
+/* tpool job: thread tid transforms slots tid, tid + n, ... (new-array
+ * execute on the plan's alignment) and makes their ramps. */
+static void fft_job(void *ctx, int tid, int n)
+{
+    powspec *p = ctx;
+    for (int s = tid; s < p->nstaged; s += n) {
+        fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad,
+                              p->out + (size_t)s * p->nhp);
+        if (p->aft)
+            ramps(p, s);
+    }
+}
+
+/* tpool job: thread tid adds every staged slot, in order, to its band of
+ * rows: |F|^2, F and (opts.aligned) F moved by the slot's ramps; about
+ * 2 w h flops a frame for the alignment. */
+static void sum_job(void *ctx, int tid, int n)
+{
+    powspec *p = ctx;
+    int j0 = (int)((int64_t)p->h * tid / n), j1 = (int)((int64_t)p->h * (tid + 1) / n);
+    for (int j = j0; j < j1; j++)
+        for (int s = 0; s < p->nstaged; s++) {
+            const fftwf_complex *out = p->out + (size_t)s * p->nhp;
+            const double complex *ex = p->ex ? p->ex + (size_t)s * p->wc : NULL;
+            const double complex *ey = p->ey ? p->ey + (size_t)s * p->h : NULL;
+            for (int i = 0; i < p->wc; i++) {
+                size_t k = (size_t)j * p->wc + i;
+                double re = crealf(out[k]), im = cimagf(out[k]);
+                p->ps[k] += re * re + im * im;
+                p->ft[k] += re + I * im;
+                if (p->aft)
+                    p->aft[k] += out[k] * ex[i] * ey[j];
+            }
+        }
+}
+
+void powspec_flush(powspec *p)
+{
+    if (!p->nstaged)
+        return;
+    tpool_run(p->pool, fft_job, p);
+    tpool_run(p->pool, sum_job, p);
+    for (int s = 0; s < p->nstaged; s++) {
+        p->flux += p->sflux[s];
+        p->w2flux += p->sw2[s];
+        p->pbias += p->o.adu_per_photon * p->sw2[s] + p->rbias;
+        p->n++;
+    }
+    p->nstaged = 0;
+}
+
+int powspec_add(powspec *p, const float *frame)
+{
+    if (!p || !frame)
+        return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
+                         "powspec_add: NULL argument");
+    size_t n = (size_t)p->w * p->h;
+    float *in = p->in + (size_t)p->nstaged * p->npad;
+    double flux = 0, w2flux = 0;
+    for (size_t i = 0; i < n; i++) {
+        float v = frame[i];
+        if (!isfinite(v))
+            return sl_seterr(&p->err, SL_EDATA,
+                             "powspec_add: frame %d pixel %zu is not finite",
+                             p->n + p->nstaged, i);
+        float wv = p->win ? p->win[i] : 1.0f;
+        in[i] = wv * v;
+        flux += v;
+        w2flux += (double)wv * wv * v;
+    }
+    p->sflux[p->nstaged] = flux;
+    p->sw2[p->nstaged] = w2flux;
+    if (++p->nstaged == p->ns)
+        powspec_flush(p);
+    return SL_OK;
+}

@@ -32,6 +32,8 @@ struct bispec {
     size_t nd;
     int32_t *doff, *dleg;    /* the u2 disk, row by row (dq = -R2..R2) */
     int32_t *drow;           /* nrow + 1: first disk entry of each row */
+    int32_t *dfirst;         /* nrow x (2 R2 + 2): a row's first entry
+                              * with dp >= -R2, -R2 + 1, ..., R2 + 1 */
     int nrow;
     int64_t *tstart;
     uint16_t *tk;

@@ -667,6 +667,7 @@ TEST(memory_formula)
         double want = T * (2 + A * (1 + snr / 2.0)) +
                       F * (91 + 16 * kb + 16 * ph) + 4.0 * (2 * R2 + 2) +
                       8 + 8.0 * (2 * R2 + 1) * (2 * R2 + 1) + 4 * (o.nthreads + 1) +
+                      4.0 * (2 * R2 + 1) * (2 * R2 + 2) +
                       4.0 * (w + 2 * R2 + 1) * (h + 2 * R2 + 1) +
                       (double)w * h * (8 + 4 * win + 32.0 * (1 + ph * win)) +
                       (double)h * (w / 2 + 1) * (16 + 64.0 * (1 + ph * win));

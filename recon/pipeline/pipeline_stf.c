@@ -74,8 +74,8 @@ int pipe_stf_modulus(const pipe_stf_in *in, double *mod, pipeline_report *rep)
      * px), the profiles on one as fine as the data's cut-off. */
     int dp = (int)lround(rc * side);
     dp = dp < FIT_DP ? FIT_DP : dp > 48 ? 48 : dp;
-    stf_model *mf = stf_model_new(FIT_DP, FIT_NREAL, 0x5f7, NULL);
-    stf_model *m = stf_model_new(dp, NREAL, 0x5f8, NULL);
+    stf_model *mf = stf_model_new(FIT_DP, FIT_NREAL, 1, 0x5f7, NULL);
+    stf_model *m = stf_model_new(dp, NREAL, 1, 0x5f8, NULL);
     int nb = stf_model_nbins(m), nbf = stf_model_nbins(mf);
     double *eps = malloc((size_t)nbf * sizeof *eps), *stf = malloc((size_t)nb * sizeof *stf);
     double *t0 = malloc((size_t)nb * sizeof *t0), d_r0 = 0, rms = 0;

@@ -123,6 +123,12 @@ static double support_snr(const double *ps, const unsigned char *support,
     return sqrt(fmax(sum / k, 0) / noise);
 }
 
+/* Direct's threads, the bispectrum's and the STF model's: 0 means 2. */
+static int direct_threads(const pipeline_opts *o)
+{
+    return o->nthreads > 0 ? o->nthreads : 2;
+}
+
 /* The bispectrum's options for s: R2, support, window, photon bias,
  * threads and the phase solver's weights and refinement. */
 static void direct_opts(const stream *s, const pipeline_opts *o, double g,
@@ -137,7 +143,7 @@ static void direct_opts(const stream *s, const pipeline_opts *o, double g,
     bo->tukey_alpha = o->tukey_alpha;
     bo->adu_per_photon = g;
     bo->read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
-    bo->nthreads = o->nthreads > 0 ? o->nthreads : 2;
+    bo->nthreads = direct_threads(o);
     bo->measure = o->fftw_measure;
     /* Noisy data (the power in the support within 30^2 of the white
      * noise's: 1000 photons give ~2) get the least-squares refinement with
@@ -213,7 +219,8 @@ static int direct_modulus(stream *s, stream *ref, const pipeline_opts *o,
         rc = reference_modulus(s, ref, o, sp->ps, ps_ref, m, err);
     else {
         pipe_stf_in si = {.ps = sp->ps, .le = sp->le, .support = support,
-                          .w = s->w, .h = s->h, .nframes = sp->nframes};
+                          .w = s->w, .h = s->h, .nframes = sp->nframes,
+                          .nthreads = direct_threads(o)};
         if (!pipe_stf_modulus(&si, m, rep))
             free(m), m = NULL;
     }

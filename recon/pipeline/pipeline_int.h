@@ -158,11 +158,13 @@ typedef struct pipe_binary_in {
 
 /* The filled-pupil modulus (pipeline_stf.c): the power spectrum ps and
  * the aligned long exposure's power le (powspec_aligned_power), both
- * w x h, bias-free, with their support and frame count. */
+ * w x h, bias-free, with their support and frame count; nthreads (1..64)
+ * evaluate the model, the bispectrum's (the result does not depend on
+ * it). */
 typedef struct pipe_stf_in {
     const double *ps, *le;
     const unsigned char *support;
-    int w, h, nframes;
+    int w, h, nframes, nthreads;
 } pipe_stf_in;
 
 /* 1 and the corrected modulus in mod when the support is a filled pupil

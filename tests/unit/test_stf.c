@@ -19,7 +19,7 @@ static double disc_otf(double nu)
 
 TEST(no_turbulence_is_diffraction)
 {
-    stf_model *m = stf_model_new(48, 8, 1, NULL);
+    stf_model *m = stf_model_new(48, 8, 1, 1, NULL);
     CHECK(m, "model");
     int nb = stf_model_nbins(m);
     double stf[49], le[49], t0[49];
@@ -61,7 +61,7 @@ TEST(korff_asymptote)
      * 1.4-1.6 x Korff's 0.435 at D/r0 4-24 and pupils of 48 and 96 px
      * (a finite-D/r0 excess the asymptote leaves out); the correction
      * fits D/r0 through the same model, so only the shape matters. */
-    stf_model *m = stf_model_new(48, 96, 2, NULL);
+    stf_model *m = stf_model_new(48, 96, 1, 2, NULL);
     CHECK(m, "model");
     double s8, s16, k8 = plateau(m, 8, &s8), k16 = plateau(m, 16, &s16);
     double stf[49], le[49];
@@ -79,7 +79,7 @@ TEST(korff_asymptote)
 TEST(fit_round_trip)
 {
     /* the spectral ratio of one model (its own screens) fitted by another */
-    stf_model *a = stf_model_new(32, 64, 3, NULL), *b = stf_model_new(32, 32, 4, NULL);
+    stf_model *a = stf_model_new(32, 64, 1, 3, NULL), *b = stf_model_new(32, 32, 1, 4, NULL);
     CHECK(a && b, "models");
     double truth[] = {2.5, 5.5, 12};
     for (int c = 0; c < 3; c++) {
@@ -99,6 +99,50 @@ TEST(fit_round_trip)
     CHECK(stf_model_fit(b, eps, &d, NULL) == SL_EDATA, "a fit on no data");
     stf_model_free(a);
     stf_model_free(b);
+}
+
+/* The profiles and the fitted D/r0 of one model on 1, 2, 3 and 7 threads:
+ * the same bits (the realisations' grouping is fixed, not the threads'). */
+TEST(threads_same_bits)
+{
+    enum { NB = 33 };
+    static const int nthr[] = {1, 2, 3, 7};
+    double ref[3][NB], got[3][NB], eps[NB], d_ref = 0;
+    for (int c = 0; c < 4; c++) {
+        stf_model *m = stf_model_new(32, 32, nthr[c], 4, NULL);
+        CHECK(m, "model on %d threads", nthr[c]);
+        double (*out)[NB] = c ? got : ref, d_r0 = 0;
+        int rc = stf_model_eval(m, 5.5, out[0], out[1], out[2]);
+        if (c == 0)
+            for (int i = 0; i < NB; i++)
+                eps[i] = 0.02 + 0.9 * ref[1][i] / ref[0][i];
+        int rf = rc == SL_OK ? stf_model_fit(m, eps, &d_r0, NULL) : rc;
+        stf_model_free(m);
+        CHECK(rc == SL_OK && rf == SL_OK, "eval %d, fit %d on %d threads", rc, rf, nthr[c]);
+        if (c == 0) {
+            d_ref = d_r0;
+            continue;
+        }
+        CHECK(memcmp(got, ref, sizeof ref) == 0, "profiles differ on %d threads", nthr[c]);
+        CHECK(memcmp(&d_r0, &d_ref, sizeof d_r0) == 0, "D/r0 %.17g on %d threads, %.17g on 1",
+              d_r0, nthr[c], d_ref);
+    }
+}
+
+/* nthreads outside 1..64 is refused, by its value. */
+TEST(threads_out_of_range)
+{
+    static const int bad[] = {0, 65};
+    for (int c = 0; c < 2; c++) {
+        sl_err err = {0};
+        stf_model *m = stf_model_new(32, 8, bad[c], 1, &err);
+        char want[16];
+        snprintf(want, sizeof want, "%d threads", bad[c]);
+        stf_model_free(m);
+        CHECK(!m && err.code == SL_EINVAL, "%d threads: model %p, code %d", bad[c], (void *)m,
+              err.code);
+        CHECK(strstr(err.msg, want), "%d threads refused as \"%s\"", bad[c], err.msg);
+    }
 }
 
 /* Frames of one object moved by whole pixels: the aligned long exposure
@@ -136,7 +180,7 @@ TEST(aligned_long_exposure)
 TEST(modulus_round_trip)
 {
     enum { N = 96 };
-    stf_model *m = stf_model_new(40, 32, 5, NULL);
+    stf_model *m = stf_model_new(40, 32, 1, 5, NULL);
     CHECK(m, "model");
     int nb = stf_model_nbins(m);
     double stf[41], t0[41];
@@ -174,4 +218,5 @@ TEST(modulus_round_trip)
 
 TC_MAIN(TC_CASE(no_turbulence_is_diffraction), TC_CASE(korff_asymptote),
         TC_CASE(fit_round_trip), TC_CASE(aligned_long_exposure),
-        TC_CASE(modulus_round_trip))
+        TC_CASE(modulus_round_trip), TC_CASE(threads_same_bits),
+        TC_CASE(threads_out_of_range))

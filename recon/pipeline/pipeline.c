@@ -39,6 +39,13 @@ typedef struct seq_ps {
     int nframes;
 } seq_ps;
 
+/* Direct's threads, the power spectrum's, the bispectrum's and the STF
+ * model's: 0 means 2. */
+static int direct_threads(const pipeline_opts *o)
+{
+    return o->nthreads > 0 ? o->nthreads : 2;
+}
+
 static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
                             double photons, seq_ps *out, sl_err *err)
 {
@@ -48,7 +55,7 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
     po.window = o->window;
     po.tukey_alpha = o->tukey_alpha;
     po.measure = o->fftw_measure;
-    po.nthreads = o->nthreads > 0 ? o->nthreads : 2; /* as direct_opts */
+    po.nthreads = direct_threads(o);
     po.bias = g > 0 ? POWSPEC_BIAS_PHOTON : POWSPEC_BIAS_FLOOR;
     po.adu_per_photon = g;
     if (g > 0)
@@ -121,12 +128,6 @@ static double support_snr(const double *ps, const unsigned char *support,
     if (!(noise > 1e-12 * ps[0]) || !k)
         return 1e6;
     return sqrt(fmax(sum / k, 0) / noise);
-}
-
-/* Direct's threads, the bispectrum's and the STF model's: 0 means 2. */
-static int direct_threads(const pipeline_opts *o)
-{
-    return o->nthreads > 0 ? o->nthreads : 2;
 }
 
 /* The bispectrum's options for s: R2, support, window, photon bias,

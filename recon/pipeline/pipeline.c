@@ -146,6 +146,14 @@ static void direct_opts(const stream *s, const pipeline_opts *o, double g,
     bo->read_noise_adu = g > 0 ? stream_read_noise_adu(s, photons) : 0;
     bo->nthreads = direct_threads(o);
     bo->measure = o->fftw_measure;
+    /* Float accumulators: half the memory, and the fresh pages the
+     * kernel must zero at first touch (12 % of a 200^2 x 100 run's CPU
+     * on this VM), for one more rounding per batch of 64 frames: nb
+     * 2^-24 of sum |B_f| over nb batches, under the float batch sums'
+     * own ~10 2^-24 until ~600 frames and 6e-5 at 64 000 (test_bispec_kernel
+     * float_sums_within_bound), far below any phase noise of that many
+     * frames. */
+    bo->acc_float = 1;
     /* Noisy data (the power in the support within 30^2 of the white
      * noise's: 1000 photons give ~2) get the least-squares refinement with
      * SNR weights, |B| over its standard error across the frames (50 %

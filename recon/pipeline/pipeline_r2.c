@@ -13,8 +13,8 @@
  * Model (bispec.h, Memory): T(R2) = s^2 [(pi^2/4) r_c^2 R2^2 -
  * (pi/3) r_c R2^3 - 2 R2^4] for R2 <= r_c/2, r_c the measured cut-off
  * and s the support's fill of the disc of radius r_c (an aperture mask's
- * MTF: ~0.5); bytes = T (2 + A (1 + snr/2)), A = 16 (double
- * accumulators), plus ~350 bytes per support frequency.  The caller
+ * MTF: ~0.5); bytes = T (2 + A (1 + snr/2)), A = 8 (float
+ * accumulators, direct_opts), plus ~350 bytes per support frequency.  The caller
  * checks bispec_memory_bytes afterwards and shrinks once more when the
  * model was short. */
 #include "pipeline_int.h"
@@ -43,7 +43,7 @@ int pipe_direct_r2(int w, int h, const unsigned char *support, double rcut_px,
     double fill = fmin(1, ns / (M_PI * rcut_px * rcut_px));
     /* per stored triple, and per support frequency (its legs, the batch
      * of frames' spectra, the phases: ~350 bytes, bispec.h) */
-    double per = 2 + 16 * (1 + (snr ? 0.5 : 0)), budget = budget_mb * 1048576.0;
+    double per = 2 + 8 * (1 + (snr ? 0.5 : 0)), budget = budget_mb * 1048576.0;
     budget -= 350.0 * ns / 2;
     int lo = r2;
     while (lo > 4 && triples(rcut_px, fill, fmin(lo, rcut_px / 2)) * per > budget)

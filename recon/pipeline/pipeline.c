@@ -148,9 +148,9 @@ static void direct_opts(const stream *s, const pipeline_opts *o, double g,
     bo->measure = o->fftw_measure;
     /* Float accumulators: half the memory, and the fresh pages the
      * kernel must zero at first touch (12 % of a 200^2 x 100 run's CPU
-     * on this VM), for one more rounding per batch of 64 frames: nb
+     * on this VM), for one more rounding per batch of 128 frames: nb
      * 2^-24 of sum |B_f| over nb batches, under the float batch sums'
-     * own ~10 2^-24 until ~600 frames and 6e-5 at 64 000 (test_bispec_kernel
+     * own ~11 2^-24 until ~1400 frames and 3e-5 at 64 000 (test_bispec_kernel
      * float_sums_within_bound), far below any phase noise of that many
      * frames. */
     bo->acc_float = 1;

@@ -94,7 +94,7 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
     return SL_OK;
 }
 
-/* Frames per batch: the largest of BISPEC_BATCH_MAX, /2, /4 whose batch
+/* Frames per batch: the largest of BISPEC_BATCH_MAX, /2, /4, /8 whose batch
  * buffer fits BISPEC_BATCH_BYTES. */
 static int batch_frames(int nf)
 {

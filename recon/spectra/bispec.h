@@ -67,10 +67,10 @@
 #include "powspec.h"
 #include "status.h"
 
-/* Frames per batch: 64, 32 or 16, the largest whose batch buffer (2F
+/* Frames per batch: 128, 64, 32 or 16, the largest whose batch buffer (2F
  * legs x 2 x batch floats) fits BISPEC_BATCH_BYTES, so the legs a tile of
  * targets reads stay in a 2 MB L2. */
-#define BISPEC_BATCH_MAX 64
+#define BISPEC_BATCH_MAX 128
 #define BISPEC_BATCH_BYTES (32u << 20)
 #define BISPEC_R2_MAX 144 /* u2 offsets must fit a uint16 */
 
@@ -134,7 +134,7 @@ size_t bispec_ntriples(const bispec *b);
 int bispec_nfreq(const bispec *b);       /* |S n H|, DC included */
 size_t bispec_ndisk(const bispec *b);    /* stored u2 offsets (nd) */
 size_t bispec_memory_bytes(const bispec *b);
-int bispec_batch(const bispec *b);       /* frames per batch (16..64) */
+int bispec_batch(const bispec *b);       /* frames per batch (16..128) */
 int bispec_simd(const bispec *b);        /* the kernel's BISPEC_SIMD_* */
 const char *bispec_simd_name(int simd);  /* "avx512", ... */
 int bispec_simd_has(int simd);           /* this CPU can run it (AUTO: 1) */

@@ -37,7 +37,8 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static const char *const groups[] = {"camera", "stage", "screens", "masks", "paths", "daemon"};
+static const char *const groups[] = {"camera", "stage", "screens", "masks", "paths", "daemon",
+                                     "calibration", "web"};
 
 static int in(double x, double lo, double hi)
 {

@@ -24,6 +24,7 @@
 #include <fftw3.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -387,16 +388,27 @@ static void run_passes(const radon_spatial *sp, float *proj, float *cols, int p0
     }
 }
 
+/* The passes are claimed a few at a time by whichever thread is free,
+ * not cut in fixed shares: the caller also reads and prepares frames and
+ * the helper thread shares its core with the accumulation, so fixed
+ * halves left one waiting on the other (the caller did 1.5x the helper's
+ * share at 200^2, 2 threads).  Each pass writes only its own two
+ * projections, so who runs it does not change a bit. */
+enum { SP_CLAIM = 4 };
 typedef struct sp_job {
     const radon_spatial *sp;
-    float *proj, *cols;
-    int p0, p1;
+    float *proj;
+    atomic_int *next;
+    float *cols;
 } sp_job;
 
 static void *job_run(void *arg)
 {
     const sp_job *j = arg;
-    run_passes(j->sp, j->proj, j->cols, j->p0, j->p1);
+    for (int p0; (p0 = atomic_fetch_add(j->next, SP_CLAIM)) < j->sp->npass;) {
+        int p1 = p0 + SP_CLAIM < j->sp->npass ? p0 + SP_CLAIM : j->sp->npass;
+        run_passes(j->sp, j->proj, j->cols, p0, p1);
+    }
     return NULL;
 }
 
@@ -415,18 +427,16 @@ void radon_spatial_project(radon_spatial *sp, const float *img, float *proj)
     memset(proj, 0, (size_t)sp->nang * sp->ns * sizeof *proj);
     pthread_t th[SP_MAX_THREADS];
     sp_job job[SP_MAX_THREADS];
+    atomic_int next = 0;
     for (int t = 0; t < nt; t++)
-        job[t] = (sp_job){sp, proj, sp->cols + (size_t)t * (sp->nd + 9),
-                          sp->npass * t / nt, sp->npass * (t + 1) / nt};
+        job[t] = (sp_job){sp, proj, &next, sp->cols + (size_t)t * (sp->nd + 9)};
     int started = 0;
     for (int t = 1; t < nt; t++) {
         if (pthread_create(&th[t], NULL, job_run, &job[t]) != 0)
             break;   /* no thread: run the rest here */
         started = t;
     }
-    job_run(&job[0]);
-    for (int t = started + 1; t < nt; t++)
-        job_run(&job[t]);
+    job_run(&job[0]); /* claims whatever the threads not started leave */
     for (int t = 1; t <= started; t++)
         pthread_join(th[t], NULL);
 }

@@ -250,8 +250,14 @@ static bispec *direct_bispec(const stream *s, const pipeline_opts *o,
     double budget = o->bispec_mem_mb > 0 ? o->bispec_mem_mb : PIPE_BISPEC_MEM_MB;
     int bounded = 0;
     int snr_acc = bo->weight == PHASOR_WEIGHT_SNR || bo->refine_weight == PHASOR_WEIGHT_SNR;
+    /* A quarter of the budget for the batch of frames' spectra: a big
+     * frame's many frequencies would otherwise get 16-frame batches, and
+     * the kernel's passes over the accumulators, one per batch, cost
+     * more than its products (512^2 x 400: 25 passes). */
+    bo->batch_bytes = (size_t)(budget * 1048576.0 / 4);
     if (o->r2_px <= 0)
-        bo->r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget, &bounded);
+        bo->r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget,
+                                   bo->batch_bytes, &bounded);
     for (;;) {
         bispec *b = bispec_new(s->w, s->h, bo, err);
         if (!b)

@@ -172,18 +172,18 @@ typedef struct pipe_stf_in {
  * rep->stf_d_r0 say which and why. */
 int pipe_stf_modulus(const pipe_stf_in *in, double *mod, pipeline_report *rep);
 
-/* Measure the binary on img (w x h, the estimator's own size) with every
- * fit and judge what the data support (pipeline.h, pipeline_binary). */
 /* The direct method's default R2: the largest <= 0.14 x the side whose
  * bispectrum (modelled from the support and the cut-off) fits budget_mb;
  * *bounded = 1 when that is smaller (pipeline_r2.c).  snr: the SNR
- * accumulators are kept. */
+ * accumulators are kept; batch_bytes: bispec_opts.batch_bytes. */
 int pipe_direct_r2(int w, int h, const unsigned char *support, double rcut_px,
-                   int snr, double budget_mb, int *bounded);
+                   int snr, double budget_mb, size_t batch_bytes, int *bounded);
 /* r2 again when the bispectrum built holds bytes over 1.25 budget: the
  * model was short; r2 itself when it fits. */
 int pipe_direct_r2_shrink(int r2, size_t bytes, double budget_mb);
 
+/* Measure the binary on img (w x h, the estimator's own size) with every
+ * fit and judge what the data support (pipeline.h, pipeline_binary). */
 void pipe_binary_measure(const pipe_binary_in *in, const float *img, int w,
                          int h, pipeline_binary *r);
 /* Every keyword of the image header from the typed result, in one place

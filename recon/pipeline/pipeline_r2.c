@@ -14,7 +14,8 @@
  * (pi/3) r_c R2^3 - 2 R2^4] for R2 <= r_c/2, r_c the measured cut-off
  * and s the support's fill of the disc of radius r_c (an aperture mask's
  * MTF: ~0.5); bytes = T (2 + A (1 + snr/2)), A = 8 (float
- * accumulators, direct_opts), plus ~350 bytes per support frequency.  The caller
+ * accumulators, direct_opts), plus 95 + 16 kb bytes per support
+ * frequency (kb frames per batch, bispec_batch_frames).  The caller
  * checks bispec_memory_bytes afterwards and shrinks once more when the
  * model was short. */
 #include "pipeline_int.h"
@@ -29,7 +30,7 @@ static double triples(double rc, double fill, double r2)
 }
 
 int pipe_direct_r2(int w, int h, const unsigned char *support, double rcut_px,
-                   int snr, double budget_mb, int *bounded)
+                   int snr, double budget_mb, size_t batch_bytes, int *bounded)
 {
     int side = w < h ? w : h;
     int r2 = (int)lround(0.14 * side);
@@ -41,10 +42,12 @@ int pipe_direct_r2(int w, int h, const unsigned char *support, double rcut_px,
     for (size_t i = 0; i < n; i++)
         ns += support[i] != 0;
     double fill = fmin(1, ns / (M_PI * rcut_px * rcut_px));
-    /* per stored triple, and per support frequency (its legs, the batch
-     * of frames' spectra, the phases: ~350 bytes, bispec.h) */
+    /* per stored triple, and per support frequency (its tables and
+     * phases, 95 bytes, and the batch of frames' spectra, 16 per frame:
+     * bispec.h) */
     double per = 2 + 8 * (1 + (snr ? 0.5 : 0)), budget = budget_mb * 1048576.0;
-    budget -= 350.0 * ns / 2;
+    int nf = (int)(ns / 2 + 1);
+    budget -= (95.0 + 16.0 * bispec_batch_frames(nf, batch_bytes)) * nf;
     int lo = r2;
     while (lo > 4 && triples(rcut_px, fill, fmin(lo, rcut_px / 2)) * per > budget)
         lo--;

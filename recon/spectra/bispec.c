@@ -94,12 +94,11 @@ static int check_opts(const bispec_opts *o, int w, int h, sl_err *err)
     return SL_OK;
 }
 
-/* Frames per batch: the largest of BISPEC_BATCH_MAX, /2, /4, /8 whose batch
- * buffer fits BISPEC_BATCH_BYTES. */
-static int batch_frames(int nf)
+int bispec_batch_frames(int nf, size_t batch_bytes)
 {
+    size_t cap = batch_bytes ? batch_bytes : BISPEC_BATCH_BYTES;
     int kb = BISPEC_BATCH_MAX;
-    while (kb > BISPEC_LANES && (size_t)nf * 2 * 2 * kb * sizeof(float) > BISPEC_BATCH_BYTES)
+    while (kb > BISPEC_LANES && (size_t)nf * 2 * 2 * kb * sizeof(float) > cap)
         kb /= 2;
     return kb;
 }
@@ -216,7 +215,7 @@ bispec *bispec_new(int w, int h, const bispec_opts *o, sl_err *err)
     }
     if ((rc = bispec_build_graph(b, err)) != SL_OK)
         goto fail;
-    b->kb = batch_frames(b->nf);
+    b->kb = bispec_batch_frames(b->nf, o->batch_bytes);
     if ((rc = alloc_buffers(b)) != SL_OK ||
         (rc = plan_transforms(b)) != SL_OK)
         goto fail;
@@ -243,7 +242,7 @@ void bispec_free(bispec *b)
     for (int i = 0; i < b->nmap; i++)
         munmap(b->map[i], b->maplen[i]);
     void *bufs[] = {b->fp,   b->fq,    b->ubase, b->seed,  b->lut,  b->doff,
-                    b->dleg, b->tstart, b->tk,   b->trange, b->order, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
+                    b->dleg, b->tstart, b->tk,   b->trange, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
                     b->known, b->work, b->win,   b->in,    b->out,  b->in2,
                     b->out2, b->cin,   b->cout, b->w2ft};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)

@@ -21,7 +21,7 @@
  *
  * Memory.  With T stored triples and F = |S n H| frequencies:
  *   bytes = T * (2 + A * (1 + s/2))
- *         + F * (91 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (2 R2 + 2)
+ *         + F * (95 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (2 R2 + 2)
  *         + 4 * (2 R2 + 1) * (2 R2 + 2)
  *         + 4 * (nthreads + 1)
  *         + 4 * (w + 2 R2 + 1) * (h + 2 R2 + 1)          [even w, h]
@@ -68,8 +68,10 @@
 #include "status.h"
 
 /* Frames per batch: 128, 64, 32 or 16, the largest whose batch buffer (2F
- * legs x 2 x batch floats) fits BISPEC_BATCH_BYTES, so the legs a tile of
- * targets reads stay in a 2 MB L2. */
+ * legs x 2 x batch floats) fits BISPEC_BATCH_BYTES (or opts.batch_bytes).
+ * A batch is one pass of the kernel over every accumulator; with few
+ * frames per batch the passes, not the products, cost (512^2: 16 frames,
+ * 25 passes for 400 frames, and two threads gained 1.16x). */
 #define BISPEC_BATCH_MAX 128
 #define BISPEC_BATCH_BYTES (32u << 20)
 #define BISPEC_R2_MAX 144 /* u2 offsets must fit a uint16 */
@@ -101,6 +103,10 @@ typedef struct bispec_opts {
     int refine_weight;            /* PHASOR_WEIGHT_* of the least-squares
                                    * refinement; SNR stores sum |b|^2 */
     int acc_float;                /* complex float accumulators (half memory) */
+    size_t batch_bytes;           /* cap on the batch buffer, bytes (0:
+                                   * BISPEC_BATCH_BYTES): more frames per
+                                   * batch, fewer passes over the
+                                   * accumulators (bispec_batch_frames) */
     int nthreads;                 /* threads for the triple loop, >= 1 */
     int measure;                  /* FFTW_MEASURE (1, default) or ESTIMATE */
     int simd;                     /* BISPEC_SIMD_*: the triple kernel's
@@ -135,6 +141,10 @@ int bispec_nfreq(const bispec *b);       /* |S n H|, DC included */
 size_t bispec_ndisk(const bispec *b);    /* stored u2 offsets (nd) */
 size_t bispec_memory_bytes(const bispec *b);
 int bispec_batch(const bispec *b);       /* frames per batch (16..128) */
+/* The frames per batch bispec_new takes for nf = |S n H| frequencies and
+ * a cap of batch_bytes (0: BISPEC_BATCH_BYTES): the largest of 128, 64,
+ * 32 whose buffer, 16 nf kb bytes, fits; 16 at least. */
+int bispec_batch_frames(int nf, size_t batch_bytes);
 int bispec_simd(const bispec *b);        /* the kernel's BISPEC_SIMD_* */
 const char *bispec_simd_name(int simd);  /* "avx512", ... */
 int bispec_simd_has(int simd);           /* this CPU can run it (AUTO: 1) */

@@ -287,6 +287,24 @@ static int tile_order(bispec *b)
     return SL_OK;
 }
 
+/* sorder: the frequencies by their place in the half spectrum (row q mod
+ * h, then p), the order in which bispec_kernel.c spreads them. */
+static int spectrum_order(bispec *b)
+{
+    int64_t *key = malloc((size_t)b->nf * sizeof *key);
+    if (!key)
+        return SL_ENOMEM;
+    for (int j = 0; j < b->nf; j++) {
+        int64_t o = (int64_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
+        key[j] = o << 32 | j;
+    }
+    qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
+    for (int j = 0; j < b->nf; j++)
+        b->sorder[j] = (int32_t)(key[j] & 0xffffffff);
+    free(key);
+    return SL_OK;
+}
+
 /* Split order[] into nthr ranges of about equal triple counts, at tile
  * starts. */
 static void split_ranges(bispec *b)
@@ -325,7 +343,8 @@ int bispec_build_graph(bispec *b, sl_err *err)
     b->trange = bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange);
     b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
     b->tbeg = b->order ? bispec_alloc(b, (size_t)b->nf) : NULL;
-    if (!b->tbeg || tile_order(b) != SL_OK)
+    b->sorder = b->tbeg ? bispec_alloc(b, (size_t)b->nf * sizeof *b->sorder) : NULL;
+    if (!b->sorder || tile_order(b) != SL_OK || spectrum_order(b) != SL_OK)
         return SL_ENOMEM;
     split_ranges(b);
     return SL_OK;

@@ -38,6 +38,7 @@ struct bispec {
     int64_t *tstart;
     uint16_t *tk;
     int32_t *order;          /* targets in the kernel's (tiled) order */
+    int32_t *sorder;         /* frequencies in the spectra's memory order */
     unsigned char *tbeg;     /* per order[] position: a tile starts there */
     int64_t nt;
     int nthr;
@@ -57,6 +58,7 @@ struct bispec {
     int n;                   /* frames added */
     double *psum, *xsum;     /* per frequency: sum |F|^2, sum X */
     double w2sum, w3sum;     /* sums over frames of sum w^2 I, sum w^3 I */
+    double sw2[BISPEC_SLOTS], sw3[BISPEC_SLOTS]; /* the staged frames' */
     double rw2, rw3;         /* read noise per frame: rn^2 sum w^2, sum w^3 */
     double *w2ft;            /* per frequency: (rn^2 / g) conj FFT(w^2), or NULL */
     float *win, *in, *in2;   /* BISPEC_SLOTS frames, npad floats apart */

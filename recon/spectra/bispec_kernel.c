@@ -10,6 +10,7 @@
 #include <complex.h>
 #include <fftw3.h>
 
+#include "base/finite.h"
 #include "bispec_int.h"
 
 #include <math.h>
@@ -61,13 +62,35 @@ static void kjob(void *ctx, int tid, int n)
     kernel(b, b->trange[tid], b->trange[tid + 1]);
 }
 
-/* tpool job: thread tid transforms the staged frames' slots tid, tid + n,
- * ... (fftwf_execute_dft_r2c on the handle's plans: every slot has the
- * planned arrays' alignment). */
+/* Slot k's frame, as bispec_add copied it, windowed in place (and w^2
+ * times it into in2 for the photon terms), with its sums of w^2 I and
+ * w^3 I: per pixel in order, as one thread would. */
+static void window_slot(bispec *b, int k)
+{
+    size_t npx = (size_t)b->w * b->h;
+    float *in = b->in + (size_t)k * b->npad;
+    float *in2 = b->in2 ? b->in2 + (size_t)k * b->npad : NULL;
+    double w2 = 0, w3 = 0;
+    for (size_t i = 0; i < npx; i++) {
+        float v = in[i], wv = b->win ? b->win[i] : 1.0f;
+        in[i] = wv * v;
+        if (in2)
+            in2[i] = wv * wv * v;
+        w2 += (double)wv * wv * v;
+        w3 += (double)wv * wv * wv * v;
+    }
+    b->sw2[k] = w2;
+    b->sw3[k] = w3;
+}
+
+/* tpool job: thread tid windows and transforms the staged frames' slots
+ * tid, tid + n, ... (fftwf_execute_dft_r2c on the handle's plans: every
+ * slot has the planned arrays' alignment). */
 static void fft_job(void *ctx, int tid, int n)
 {
     bispec *b = ctx;
     for (int k = tid; k < b->nb - b->nspread; k += n) {
+        window_slot(b, k);
         fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
         if (b->plan2)
             fftwf_execute_dft_r2c(b->plan2, b->in2 + (size_t)k * b->npad,
@@ -109,13 +132,16 @@ static void spread_freq(bispec *b, int j)
     }
 }
 
-/* tpool job: thread tid spreads its share of the frequencies. */
+/* tpool job: thread tid spreads its share of the frequencies, taken in
+ * the spectra's memory order (sorder): in rank order each frequency read
+ * the staged spectra at scattered places, a cache miss per frame and
+ * frequency once they outgrow L2 (8 MB of spectra at 512^2). */
 static void spread_job(void *ctx, int tid, int n)
 {
     bispec *b = ctx;
-    int j1 = (int)((int64_t)b->nf * (tid + 1) / n);
-    for (int j = (int)((int64_t)b->nf * tid / n); j < j1; j++)
-        spread_freq(b, j);
+    int i1 = (int)((int64_t)b->nf * (tid + 1) / n);
+    for (int i = (int)((int64_t)b->nf * tid / n); i < i1; i++)
+        spread_freq(b, b->sorder[i]);
 }
 
 /* Transform the staged frames and spread them over the legs, both on the
@@ -125,6 +151,10 @@ static void stage(bispec *b)
     if (b->nb == b->nspread)
         return;
     tpool_run(b->pool, fft_job, b);
+    for (int k = 0; k < b->nb - b->nspread; k++) { /* in frame order */
+        b->w2sum += b->sw2[k];
+        b->w3sum += b->sw3[k];
+    }
     tpool_run(b->pool, spread_job, b);
     b->nspread = b->nb;
 }
@@ -153,34 +183,21 @@ void bispec_flush(bispec *b)
 
 double bispec_kernel_s(const bispec *b) { return b ? b->kernel_s : 0; }
 
-/* The frame, windowed, into the next frame slot (and w^2 times it for the
- * photon terms); the slots are transformed together when full
- * (BISPEC_SLOTS of them: fewer than a batch, to spare memory). */
+/* The frame into the next frame slot, after one branch-free scan for
+ * NaN and Inf; the slots are windowed and transformed together on the
+ * handle's threads when full (BISPEC_SLOTS of them: fewer than a batch,
+ * to spare memory).  The window and its sums per pixel were this
+ * caller's serial part: 0.38 s of a 512^2 x 400 run. */
 int bispec_add(bispec *b, const float *frame)
 {
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
-    size_t npx = (size_t)b->w * b->h;
-    size_t slot = (size_t)(b->nb - b->nspread);
-    float *in = b->in + slot * b->npad;
-    float *in2 = b->in2 ? b->in2 + slot * b->npad : NULL;
-    double w2 = 0, w3 = 0;
-    for (size_t i = 0; i < npx; i++) {
-        float v = frame[i];
-        if (!isfinite(v))
-            return sl_seterr(&b->err, SL_EDATA,
-                             "bispec_add: frame %d pixel %zu is not finite",
-                             b->n, i);
-        float wv = b->win ? b->win[i] : 1.0f;
-        in[i] = wv * v;
-        if (in2)
-            in2[i] = wv * wv * v;
-        w2 += (double)wv * wv * v;
-        w3 += (double)wv * wv * wv * v;
-    }
-    b->w2sum += w2;
-    b->w3sum += w3;
+    size_t npx = (size_t)b->w * b->h, bad = finite_scan(frame, npx);
+    if (bad < npx)
+        return sl_seterr(&b->err, SL_EDATA, "bispec_add: frame %d pixel %zu is not finite",
+                         b->n, bad);
+    memcpy(b->in + (size_t)(b->nb - b->nspread) * b->npad, frame, npx * sizeof *frame);
     b->n++;
     b->phased = 0;
     if (++b->nb == b->kb)

@@ -8,6 +8,7 @@
  * spectrum pass's serial part (12 % of a one-thread direct run at
  * 512^2 x 400).
  */
+#include "base/finite.h"
 #include "powspec_int.h"
 
 #include <math.h>
@@ -29,12 +30,30 @@ static void ramps(powspec *p, int s)
         ey[j] = cexp(-I * (j <= p->h / 2 ? j : j - p->h) * ay);
 }
 
-/* tpool job: thread tid transforms slots tid, tid + n, ... (new-array
- * execute on the plan's alignment) and makes their ramps. */
+/* Slot s's frame, as powspec_add copied it, windowed in place, with its
+ * flux and sum of w^2 I: per pixel in order, as one thread would. */
+static void window_slot(powspec *p, int s)
+{
+    size_t n = (size_t)p->w * p->h;
+    float *in = p->in + (size_t)s * p->npad;
+    double flux = 0, w2flux = 0;
+    for (size_t i = 0; i < n; i++) {
+        float v = in[i], wv = p->win ? p->win[i] : 1.0f;
+        in[i] = wv * v;
+        flux += v;
+        w2flux += (double)wv * wv * v;
+    }
+    p->sflux[s] = flux;
+    p->sw2[s] = w2flux;
+}
+
+/* tpool job: thread tid windows and transforms slots tid, tid + n, ...
+ * (new-array execute on the plan's alignment) and makes their ramps. */
 static void fft_job(void *ctx, int tid, int n)
 {
     powspec *p = ctx;
     for (int s = tid; s < p->nstaged; s += n) {
+        window_slot(p, s);
         fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad,
                               p->out + (size_t)s * p->nhp);
         if (p->aft)
@@ -80,27 +99,19 @@ void powspec_flush(powspec *p)
     p->nstaged = 0;
 }
 
+/* The frame into the next slot after one branch-free scan for NaN and
+ * Inf; the window and the sums run with the transforms, on the threads
+ * (they were 0.29 s of the caller's time in a 512^2 x 400 run). */
 int powspec_add(powspec *p, const float *frame)
 {
     if (!p || !frame)
         return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
                          "powspec_add: NULL argument");
-    size_t n = (size_t)p->w * p->h;
-    float *in = p->in + (size_t)p->nstaged * p->npad;
-    double flux = 0, w2flux = 0;
-    for (size_t i = 0; i < n; i++) {
-        float v = frame[i];
-        if (!isfinite(v))
-            return sl_seterr(&p->err, SL_EDATA,
-                             "powspec_add: frame %d pixel %zu is not finite",
-                             p->n + p->nstaged, i);
-        float wv = p->win ? p->win[i] : 1.0f;
-        in[i] = wv * v;
-        flux += v;
-        w2flux += (double)wv * wv * v;
-    }
-    p->sflux[p->nstaged] = flux;
-    p->sw2[p->nstaged] = w2flux;
+    size_t n = (size_t)p->w * p->h, bad = finite_scan(frame, n);
+    if (bad < n)
+        return sl_seterr(&p->err, SL_EDATA, "powspec_add: frame %d pixel %zu is not finite",
+                         p->n + p->nstaged, bad);
+    memcpy(p->in + (size_t)p->nstaged * p->npad, frame, n * sizeof *frame);
     if (++p->nstaged == p->ns)
         powspec_flush(p);
     return SL_OK;

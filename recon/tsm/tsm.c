@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/finite.h"
 #include "spectra/closure.h"
 #include "base/rng.h"
 #include "tsm_int.h"
@@ -240,41 +241,17 @@ fail_free:
     return NULL;
 }
 
-/* dst = src (dst may be NULL: scan only); 1 if every pixel is finite.  x * 0
- * is 0 unless x is NaN or Inf: a branch-free scan on 8 chains, fused with
- * the copy into the block so the frame is read once (blocks of 8: the
- * compiler vectorises them). */
-static int copy_finite(float *restrict dst, const float *restrict src, size_t n)
-{
-    float z[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    size_t i = 0;
-    for (; i + 8 <= n; i += 8)
-        for (int k = 0; k < 8; k++)
-            z[k] += src[i + k] * 0.0f;
-    for (; i < n; i++)
-        z[0] += src[i] * 0.0f;
-    if (dst)
-        memcpy(dst, src, n * sizeof *src);
-    float s = 0;
-    for (int k = 0; k < 8; k++)
-        s += z[k];
-    return s == 0.0f;
-}
-
 int tsm_add(tsm *t, const float *frame)
 {
     size_t npix = (size_t)t->w * t->h, i;
     int fourier = t->o.variant == TSM_FOURIER;
-    /* Fourier: straight into the accumulator's block, sliced there */
-    if (!copy_finite(fourier ? tsm_accum_frame_slot(t->acc) : NULL, frame, npix)) {
-        for (i = 0; i < npix && isfinite(frame[i]); i++)
-            ;
+    if ((i = finite_scan(frame, npix)) < npix)
         return sl_seterr(&t->err, SL_EDATA, "tsm_add: frame %d pixel (%zu, %zu) is not finite",
                          t->nframes, i % t->w, i / t->w);
-    }
-    if (fourier)
+    if (fourier) { /* straight into the accumulator's block, sliced there */
+        memcpy(tsm_accum_frame_slot(t->acc), frame, npix * sizeof *frame);
         tsm_accum_commit_frame(t->acc);
-    else {
+    } else {
         int st = radon_project(t->rad, frame, t->proj);
         if (st == SL_OK)
             st = radon_proj_to_spec(t->rad, t->proj, tsm_accum_slot(t->acc));

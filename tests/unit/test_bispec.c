@@ -665,7 +665,7 @@ TEST(memory_formula)
         int A = o.acc_float ? 8 : 16, snr = (v & 2) != 0, ph = (v & 4) != 0,
             win = (v & 8) != 0;
         double want = T * (2 + A * (1 + snr / 2.0)) +
-                      F * (91 + 16 * kb + 16 * ph) + 4.0 * (2 * R2 + 2) +
+                      F * (95 + 16 * kb + 16 * ph) + 4.0 * (2 * R2 + 2) +
                       8 + 8.0 * (2 * R2 + 1) * (2 * R2 + 1) + 4 * (o.nthreads + 1) +
                       4.0 * (2 * R2 + 1) * (2 * R2 + 2) +
                       4.0 * (w + 2 * R2 + 1) * (h + 2 * R2 + 1) +

@@ -23,17 +23,24 @@ static float *random_frames(int n, int nfr, uint64_t seed)
     return fr;
 }
 
+/* The options every case here starts from: R2 9, a disk cut at 0.45 n,
+ * ESTIMATE plans, nthr threads. */
+static void test_opts(bispec_opts *o, int n, int nthr)
+{
+    bispec_opts_defaults(o);
+    o->r2_px = 9;
+    o->rcut_px = 0.45 * n;
+    o->measure = 0;
+    o->nthreads = nthr;
+}
+
 /* The flat sums (bispec_partial) of nfr frames on nthr threads, with
  * the kernel's instruction set simd and float accumulators or not. */
 static double *sums_on(const float *fr, int n, int nfr, int nthr, int snr, int simd,
                        int accf, size_t *len, int *kb)
 {
     bispec_opts o;
-    bispec_opts_defaults(&o);
-    o.r2_px = 9;
-    o.rcut_px = 0.45 * n;
-    o.measure = 0;
-    o.nthreads = nthr;
+    test_opts(&o, n, nthr);
     o.weight = snr ? PHASOR_WEIGHT_SNR : PHASOR_WEIGHT_MOD;
     o.simd = simd;
     o.acc_float = accf;
@@ -143,11 +150,7 @@ TEST(phases_equal_on_any_thread_count)
     static const int thr[] = {1, 2, 5};
     for (int i = 0; i < 3; i++) {
         bispec_opts o;
-        bispec_opts_defaults(&o);
-        o.r2_px = 9;
-        o.rcut_px = 0.45 * n;
-        o.measure = 0;
-        o.nthreads = thr[i];
+        test_opts(&o, n, thr[i]);
         o.refine_iters = 5;
         bispec *b = bispec_new(n, n, &o, NULL);
         CHECK(b, "bispec_new failed");
@@ -190,11 +193,7 @@ TEST(float_sums_within_bound)
     }
     for (int accf = 0; accf < 2; accf++) {
         bispec_opts o;
-        bispec_opts_defaults(&o);
-        o.r2_px = 9;
-        o.rcut_px = 0.45 * n;
-        o.measure = 0;
-        o.nthreads = 2;
+        test_opts(&o, n, 2);
         o.acc_float = accf;
         bispec *b = bispec_new(n, n, &o, NULL);
         CHECK(b, "bispec_new failed");
@@ -233,4 +232,43 @@ TEST(float_sums_within_bound)
     free(fr);
 }
 
-TC_MAIN(TC_CASE(bits_equal_on_every_simd_path), TC_CASE(bits_equal_on_any_thread_count), TC_CASE(phases_equal_on_any_thread_count), TC_CASE(float_sums_within_bound))
+/* A frame with a NaN or an Inf is refused by frame and pixel and
+ * changes nothing: the sums equal those of the good frames alone. */
+TEST(non_finite_frame_refused_by_pixel)
+{
+    int n = 32, nfr = 20;
+    float *fr = random_frames(n, nfr, 3);
+    size_t len1 = 0, len2 = 0;
+    int kb = 0;
+    double *ref = sums(fr, n, nfr, 2, 0, &len1, &kb);
+    bispec_opts o;
+    test_opts(&o, n, 2);
+    bispec *b = bispec_new(n, n, &o, NULL);
+    CHECK(ref && b, "bispec_new failed");
+    float *bad = malloc((size_t)n * n * sizeof *bad);
+    for (int f = 0; f < nfr; f++) {
+        CHECK(bispec_add(b, fr + (size_t)f * n * n) == SL_OK, "good frame %d", f);
+        if (f != 9)
+            continue;
+        memcpy(bad, fr, (size_t)n * n * sizeof *bad);
+        bad[333] = NAN;
+        CHECK(bispec_add(b, bad) == SL_EDATA && strstr(bispec_errmsg(b), "frame 10 pixel 333"),
+              "NaN: %s", bispec_errmsg(b));
+        bad[333] = 0.5f;
+        bad[1023] = INFINITY;
+        CHECK(bispec_add(b, bad) == SL_EDATA && strstr(bispec_errmsg(b), "pixel 1023"),
+              "Inf: %s", bispec_errmsg(b));
+    }
+    len2 = bispec_partial(b, NULL);
+    double *got = malloc(len2 * sizeof *got);
+    bispec_partial(b, got);
+    CHECK(len2 == len1 && memcmp(got, ref, len1 * sizeof *got) == 0,
+          "the refused frames changed the sums");
+    free(got);
+    free(bad);
+    free(ref);
+    bispec_free(b);
+    free(fr);
+}
+
+TC_MAIN(TC_CASE(bits_equal_on_every_simd_path), TC_CASE(bits_equal_on_any_thread_count), TC_CASE(phases_equal_on_any_thread_count), TC_CASE(float_sums_within_bound), TC_CASE(non_finite_frame_refused_by_pixel))

@@ -468,6 +468,39 @@ TEST(sums_equal_on_any_thread_count)
     free(fr);
 }
 
-TC_MAIN(TC_CASE(sums_equal_on_any_thread_count), TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant), TC_CASE(gain_from_the_floor),
+/* A frame with a NaN or an Inf is refused by frame and pixel, leaves the
+ * sums alone, and the stream goes on (staged frames included). */
+TEST(non_finite_frame_refused_by_pixel)
+{
+    int n = 16;
+    for (int thr = 1; thr <= 2; thr++) {
+        powspec_opts o;
+        powspec_opts_defaults(&o);
+        o.measure = 0;
+        o.nthreads = thr;
+        powspec *p = powspec_new(n, n, &o, NULL);
+        float *f = malloc((size_t)n * n * sizeof *f);
+        for (int i = 0; i < n * n; i++)
+            f[i] = 1.0f + (float)(i % 7);
+        CHECK(powspec_add(p, f) == SL_OK, "good frame");
+        f[77] = NAN;
+        CHECK(powspec_add(p, f) == SL_EDATA && strstr(powspec_errmsg(p), "frame 1 pixel 77"),
+              "NaN: %s", powspec_errmsg(p));
+        f[77] = 1.0f;
+        f[200] = -INFINITY;
+        CHECK(powspec_add(p, f) == SL_EDATA && strstr(powspec_errmsg(p), "pixel 200"),
+              "Inf: %s", powspec_errmsg(p));
+        f[200] = 1.0f;
+        CHECK(powspec_add(p, f) == SL_OK && powspec_nframes(p) == 2, "%d frames after the "
+              "refusals (2 wanted)", powspec_nframes(p));
+        double *ps = malloc((size_t)n * n * sizeof *ps);
+        CHECK(powspec_result(p, ps) == SL_OK && isfinite(ps[0]), "result after refusals");
+        free(ps);
+        free(f);
+        powspec_free(p);
+    }
+}
+
+TC_MAIN(TC_CASE(sums_equal_on_any_thread_count), TC_CASE(non_finite_frame_refused_by_pixel), TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant), TC_CASE(gain_from_the_floor),
         TC_CASE(window_shapes), TC_CASE(photon_bias_removed),
         TC_CASE(read_noise_bias_removed), TC_CASE(reference_division))

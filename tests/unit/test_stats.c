@@ -1,7 +1,10 @@
 /* test_stats.c - the selection median against sorting. */
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "base/rng.h"
+#include "base/finite.h"
 #include "base/stats.h"
 #include "tcheck.h"
 
@@ -32,4 +35,30 @@ TEST(median_equals_sorted_middle)
     CHECK(stats_median_inplace(v, 0) == 0, "empty");
 }
 
-TC_MAIN(TC_CASE(median_equals_sorted_middle))
+/* finite_scan: n when all finite; else the first NaN or Inf, wherever it
+ * lies against the 8-lane blocks (first, inside, last block, the tail),
+ * and huge finite values are finite. */
+TEST(finite_scan_finds_the_first_bad_value)
+{
+    enum { N = 37 };
+    float v[N];
+    for (int i = 0; i < N; i++)
+        v[i] = i % 2 ? 3.4e38f : -1.0f * i;
+    CHECK(finite_scan(v, N) == N, "all finite read as %zu", finite_scan(v, N));
+    CHECK(finite_scan(v, 0) == 0, "empty");
+    static const int at[] = {0, 5, 8, 31, 32, 36};
+    for (int k = 0; k < 6; k++) {
+        float bad[2] = {NAN, INFINITY};
+        for (int b = 0; b < 2; b++) {
+            float w[N];
+            memcpy(w, v, sizeof w);
+            w[at[k]] = b ? -bad[b] : bad[b];
+            if (at[k] + 3 < N)
+                w[at[k] + 3] = NAN; /* a later one does not matter */
+            size_t got = finite_scan(w, N);
+            CHECK(got == (size_t)at[k], "%s at %d read as %zu", b ? "-Inf" : "NaN", at[k], got);
+        }
+    }
+}
+
+TC_MAIN(TC_CASE(median_equals_sorted_middle), TC_CASE(finite_scan_finds_the_first_bad_value))

@@ -62,39 +62,49 @@ static double support_fill(const unsigned char *support, int w, int h,
     return all ? (double)in / all : 0;
 }
 
+/* D/r0 fitted to the data's spectral ratio on a coarse pupil (its 23
+ * evaluations cost 83 ms at 32 px on one thread, 51 on two); 0 when the
+ * fit fails or its rms says a filled pupil in Kolmogorov turbulence does
+ * not describe the data (an aperture mask's noiseless cube passes the
+ * fill gate and ends here: the fine model is then never drawn). */
+static int stf_fit(const pipe_stf_in *in, double rc, double *d_r0)
+{
+    stf_model *mf = stf_model_new(FIT_DP, FIT_NREAL, in->nthreads, 0x5f7, NULL);
+    int nbf = stf_model_nbins(mf);
+    double *eps = mf ? malloc((size_t)nbf * sizeof *eps) : NULL, rms = 0;
+    int ok = eps != NULL;
+    if (ok) {
+        stf_spectral_ratio(in->ps, in->le, in->w, in->h, rc, nbf, eps);
+        ok = stf_model_fit(mf, eps, d_r0, &rms) == SL_OK && rms < RMS_MAX;
+    }
+    free(eps);
+    stf_model_free(mf);
+    return ok;
+}
+
 int pipe_stf_modulus(const pipe_stf_in *in, double *mod, pipeline_report *rep)
 {
     int w = in->w, h = in->h;
     rep->stf_d_r0 = 0;
-    double rc = cut_off_cyc(in->support, w, h);
+    double rc = cut_off_cyc(in->support, w, h), d_r0 = 0;
     rep->stf_fill = rc > 0 ? support_fill(in->support, w, h, rc) : 0;
     int side = w < h ? w : h;
     if (rep->stf_fill < FILL_MIN || rc > RC_CYC_MAX || rc * side < 8 ||
-        in->nframes < 8)
+        in->nframes < 8 || !stf_fit(in, rc, &d_r0))
         return 0;
-    /* The fit on a coarse pupil (its 23 evaluations cost 83 ms at 32 px
-     * on one thread, 51 on two), the profiles on one as fine as the
-     * data's cut-off. */
+    /* The profiles on a pupil as fine as the data's cut-off. */
     int dp = (int)lround(rc * side);
     dp = dp < FIT_DP ? FIT_DP : dp > 48 ? 48 : dp;
-    stf_model *mf = stf_model_new(FIT_DP, FIT_NREAL, in->nthreads, 0x5f7, NULL);
     stf_model *m = stf_model_new(dp, NREAL, in->nthreads, 0x5f8, NULL);
-    int nb = stf_model_nbins(m), nbf = stf_model_nbins(mf);
-    double *eps = malloc((size_t)nbf * sizeof *eps), *stf = malloc((size_t)nb * sizeof *stf);
-    double *t0 = malloc((size_t)nb * sizeof *t0), d_r0 = 0, rms = 0;
-    int ok = m && mf && eps && stf && t0;
-    if (ok) {
-        stf_spectral_ratio(in->ps, in->le, w, h, rc, nbf, eps);
-        ok = stf_model_fit(mf, eps, &d_r0, &rms) == SL_OK &&
-             stf_model_eval(m, d_r0, stf, NULL, t0) == SL_OK;
-    }
-    ok = ok && rms < RMS_MAX;
+    int nb = stf_model_nbins(m);
+    double *stf = m ? malloc((size_t)nb * sizeof *stf) : NULL;
+    double *t0 = m ? malloc((size_t)nb * sizeof *t0) : NULL;
+    int ok = stf && t0 && stf_model_eval(m, d_r0, stf, NULL, t0) == SL_OK;
     if (ok) {
         stf_modulus(in->ps, w, h, rc, stf, t0, nb, mod);
         rep->stf_d_r0 = d_r0;
     }
     stf_model_free(m);
-    stf_model_free(mf);
-    free(eps), free(stf), free(t0);
+    free(stf), free(t0);
     return ok;
 }

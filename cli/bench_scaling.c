@@ -1,9 +1,13 @@
 /* bench_scaling.c - see bench_scaling.h.
  *
  * Each point is pipeline_run in this process (after one untimed run at
- * the same thread count, so that FFT plans and the page cache are warm:
- * each thread count plans its own per-thread handles), the median of
- * --repeat runs by wall time; the stages are pipeline_report.stage_s.
+ * each thread count, so that FFT plans and the page cache are warm: each
+ * thread count plans its own per-thread handles).  The --repeat runs are
+ * interleaved across the thread counts (1, 2, 1, 2, ...), so that a
+ * shared host's load, which drifts over minutes (+-25 % here, once 2x),
+ * falls on every count alike; each point is the fastest of its runs, the
+ * least disturbed, with its own stages (pipeline_report.stage_s), and the
+ * median is printed beside it.
  * The parallel fraction is Amdahl's from one to T threads:
  *     p = (1 - t_T / t_1) / (1 - 1 / T)
  * for the whole run and for each stage: a stage that does not gain is
@@ -27,36 +31,38 @@ typedef struct point {
     double total_s, stage_s[PIPE_NSTAGES];
 } point;
 
-/* One method at nthreads: the median run by wall time into *pt. */
-static int measure(const char *cube, int method, int nthreads, int repeat, int measure_plans,
-                   point *pt)
+/* One run of method at nthreads into *pt. */
+static int measure(const char *cube, int method, int nthreads, int measure_plans, point *pt)
 {
-    point runs[BENCH_MAX_REPEAT];
-    for (int r = 0; r < repeat; r++) {
-        pipeline_opts o;
-        pipeline_opts_defaults(&o);
-        o.method = method;
-        o.nthreads = nthreads;
-        o.fftw_measure = measure_plans;
-        pipeline_result res;
-        sl_err e;
-        const char *paths[] = {cube};
-        if (pipeline_run(paths, 1, &o, &res, &e) != SL_OK) {
-            fprintf(stderr, "specklab bench --scaling: %s: %s\n", pipeline_method_name(method),
-                    e.msg);
-            return 1;
-        }
-        runs[r].total_s = res.elapsed_s;
-        memcpy(runs[r].stage_s, res.report.stage_s, sizeof runs[r].stage_s);
-        pipeline_result_clear(&res);
+    pipeline_opts o;
+    pipeline_opts_defaults(&o);
+    o.method = method;
+    o.nthreads = nthreads;
+    o.fftw_measure = measure_plans;
+    pipeline_result res;
+    sl_err e;
+    const char *paths[] = {cube};
+    if (pipeline_run(paths, 1, &o, &res, &e) != SL_OK) {
+        fprintf(stderr, "specklab bench --scaling: %s: %s\n", pipeline_method_name(method),
+                e.msg);
+        return 1;
     }
-    for (int i = 1; i < repeat; i++)   /* insertion sort by total */
+    pt->total_s = res.elapsed_s;
+    memcpy(pt->stage_s, res.report.stage_s, sizeof pt->stage_s);
+    pipeline_result_clear(&res);
+    return 0;
+}
+
+/* The fastest of n runs into *best, and the median wall time. */
+static double best_and_median(point *runs, int n, point *best)
+{
+    for (int i = 1; i < n; i++)   /* insertion sort by total */
         for (int j = i; j > 0 && runs[j].total_s < runs[j - 1].total_s; j--) {
             point t = runs[j];
             runs[j] = runs[j - 1], runs[j - 1] = t;
         }
-    *pt = runs[repeat / 2];
-    return 0;
+    *best = runs[0];
+    return runs[n / 2].total_s;
 }
 
 static double amdahl(double t1, double tn, int n)
@@ -64,12 +70,13 @@ static double amdahl(double t1, double tn, int n)
     return t1 > 0 && n > 1 ? (1 - tn / t1) / (1 - 1.0 / n) : NAN;
 }
 
-static void print_row(const char *method, int nthreads, const point *p, const point *one)
+static void print_row(const char *method, int nthreads, const point *p, const point *one,
+                      double median_s)
 {
     printf("%-12s %7d %8.3f", method, nthreads, p->total_s);
     for (int k = 0; k < PIPE_NSTAGES; k++)
         printf(" %7.3f", p->stage_s[k]);
-    printf(" %7.2f\n", one->total_s / p->total_s);
+    printf(" %7.2f %8.3f\n", one->total_s / p->total_s, median_s);
 }
 
 /* The fraction of the run, and of each stage, that gained from 1 to n. */
@@ -101,7 +108,7 @@ static int run_methods(const bench_args *a, const char *cube, char **methods)
     printf("%-12s %7s %8s", "method", "threads", "total_s");
     for (int k = 0; k < PIPE_NSTAGES; k++)
         printf(" %7s", pipeline_stage_name(k));
-    printf(" %7s\n", "speedup");
+    printf(" %7s %8s\n", "speedup", "median_s");
     for (int m = 0; methods[m]; m++) {
         int id;
         if (pipeline_method_parse(methods[m], &id) != SL_OK || id == PIPE_AUTO) {
@@ -109,15 +116,20 @@ static int run_methods(const bench_args *a, const char *cube, char **methods)
                     "tsm-fourier\n", methods[m]);
             return 2;
         }
-        point warm, pts[MAX_T];
-        for (int i = 0; i < nt; i++) {
-            /* untimed first: each thread count plans its own handles */
-            if (measure(cube, id, t[i], 1, !a->estimate, &warm) ||
-                measure(cube, id, t[i], a->repeat, !a->estimate, &pts[i]))
+        point warm, pts[MAX_T], runs[MAX_T][BENCH_MAX_REPEAT];
+        double median[MAX_T];
+        for (int i = 0; i < nt; i++)   /* untimed: each count plans its own handles */
+            if (measure(cube, id, t[i], !a->estimate, &warm))
                 return 1;
-            print_row(methods[m], t[i], &pts[i], &pts[0]);
-            fflush(stdout);
-        }
+        for (int r = 0; r < a->repeat; r++)
+            for (int i = 0; i < nt; i++)
+                if (measure(cube, id, t[i], !a->estimate, &runs[i][r]))
+                    return 1;
+        for (int i = 0; i < nt; i++)
+            median[i] = best_and_median(runs[i], a->repeat, &pts[i]);
+        for (int i = 0; i < nt; i++)
+            print_row(methods[m], t[i], &pts[i], &pts[0], median[i]);
+        fflush(stdout);
         print_fraction(methods[m], &pts[0], &pts[nt - 1], t[nt - 1]);
     }
     return 0;
@@ -150,7 +162,8 @@ int bench_scaling_run(const bench_args *a)
     if (getloadavg(load, 1) != 1)
         load[0] = NAN;
     printf("specklab bench --scaling: %d^2 x %d frames, noiseless binary, %s plans, %ld cores, "
-           "load average %.1f before, median of %d; stages in s (pipeline.h, enum "
+           "load average %.1f before, fastest of %d runs interleaved over the thread counts "
+           "(their median in median_s); stages in s of that run (pipeline.h, enum "
            "pipeline_stage)\n", size, frames, a->estimate ? "ESTIMATE" : "MEASURE",
            sysconf(_SC_NPROCESSORS_ONLN), load[0], a->repeat);
     rc = run_methods(a, cube, methods);

@@ -12,7 +12,7 @@
  * under 8 px across, with fewer than 8 frames, or when the fit fails.
  * Cost, only on cubes that pass the fill gate: 0.12 s on one thread,
  * 0.08 s on two (0.03 s of it the models' screens, drawn serially), and
- * 4.7 MB on two threads.
+ * 4.7 MB on two threads; a refused fit skips the fine model's share.
  */
 #include <math.h>
 #include <stdlib.h>

@@ -1,7 +1,7 @@
 /* powspec_frames.c - frames into a powspec (powspec.h): each frame is
- * windowed into a slot; when the slots are full (or a result is asked
- * for) the handle's threads transform them, slot s on thread s mod n, and
- * then add them to the sums, each thread owning a band of rows of the
+ * copied into a slot; when the slots are full (or a result is asked for)
+ * the handle's threads window and transform them, slot s on thread
+ * s mod n, and then add them to the sums, each thread owning a band of rows of the
  * half plane and adding the slots in frame order.  So every sum takes the
  * same operations in the same order as one frame at a time on one thread:
  * the same bits on any thread count.  The transforms were the power

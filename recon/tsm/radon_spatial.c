@@ -389,10 +389,10 @@ static void run_passes(const radon_spatial *sp, float *proj, float *cols, int p0
 }
 
 /* The passes are claimed a few at a time by whichever thread is free,
- * not cut in fixed shares: the caller also reads and prepares frames and
- * the helper thread shares its core with the accumulation, so fixed
- * halves left one waiting on the other (the caller did 1.5x the helper's
- * share at 200^2, 2 threads).  Each pass writes only its own two
+ * not cut in fixed shares: the cores are shared with TSM's accumulation
+ * and the read-ahead thread, so fixed halves left one thread waiting on
+ * the other (the caller did 1.5x the helper's share at 200^2, 2
+ * threads).  Each pass writes only its own two
  * projections, so who runs it does not change a bit. */
 enum { SP_CLAIM = 4 };
 typedef struct sp_job {

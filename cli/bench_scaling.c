@@ -8,13 +8,24 @@
  * falls on every count alike; each point is the fastest of its runs, the
  * least disturbed, with its own stages (pipeline_report.stage_s), and the
  * median is printed beside it.
- * The parallel fraction is Amdahl's from one to T threads:
+ * A T-thread run is pinned to T of the process's CPUs (sched_setaffinity;
+ * the pipeline's threads, made inside the run, inherit it), so that T
+ * threads means T cores: the read-ahead thread and the caller then share
+ * them, as they would on a machine with T cores.  Unpinned, a 1-thread run
+ * also had the read-ahead on the second core (its CPU time ~1.3x its wall
+ * time at 512^2), which made t_1, and so every speed-up, look smaller.
+ * cpu_s (user + system of every thread, getrusage) shows the work done.
+ * The parallel fraction is Amdahl's from one to T cores:
  *     p = (1 - t_T / t_1) / (1 - 1 / T)
  * for the whole run and for each stage: a stage that does not gain is
  * serial, whatever its share.  On a shared machine the load average is
  * printed first: a busy machine makes every thread count look worse.
  */
+#define _GNU_SOURCE /* sched_setaffinity, CPU_SET */
 #include "bench_scaling.h"
+
+#include <sched.h>
+#include <sys/resource.h>
 
 #include <math.h>
 #include <stdio.h>
@@ -28,11 +39,33 @@
 #define MAX_T 6
 
 typedef struct point {
-    double total_s, stage_s[PIPE_NSTAGES];
+    double total_s, cpu_s, stage_s[PIPE_NSTAGES];
 } point;
 
-/* One run of method at nthreads into *pt. */
-static int measure(const char *cube, int method, int nthreads, int measure_plans, point *pt)
+static double cpu_now_s(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec +
+           1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+/* Restrict this thread (and the threads it makes) to the first n CPUs of
+ * *all; n <= 0: all of them.  0, or -1 when the kernel refuses. */
+static int pin_cpus(const cpu_set_t *all, int n)
+{
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    for (int c = 0, k = 0; c < CPU_SETSIZE && (n <= 0 || k < n); c++)
+        if (CPU_ISSET(c, all))
+            CPU_SET(c, &set), k++;
+    return sched_setaffinity(0, sizeof set, &set) == 0 ? 0 : -1;
+}
+
+/* One run of method at nthreads, pinned to nthreads of the CPUs in *all,
+ * into *pt. */
+static int measure(const char *cube, const cpu_set_t *all, int method, int nthreads,
+                   int measure_plans, point *pt)
 {
     pipeline_opts o;
     pipeline_opts_defaults(&o);
@@ -42,12 +75,19 @@ static int measure(const char *cube, int method, int nthreads, int measure_plans
     pipeline_result res;
     sl_err e;
     const char *paths[] = {cube};
-    if (pipeline_run(paths, 1, &o, &res, &e) != SL_OK) {
+    if (pin_cpus(all, nthreads) != 0)
+        fprintf(stderr, "specklab bench --scaling: cannot pin to %d CPUs; running unpinned\n",
+                nthreads);
+    double c0 = cpu_now_s();
+    int st = pipeline_run(paths, 1, &o, &res, &e);
+    pin_cpus(all, 0);
+    if (st != SL_OK) {
         fprintf(stderr, "specklab bench --scaling: %s: %s\n", pipeline_method_name(method),
                 e.msg);
         return 1;
     }
     pt->total_s = res.elapsed_s;
+    pt->cpu_s = cpu_now_s() - c0;
     memcpy(pt->stage_s, res.report.stage_s, sizeof pt->stage_s);
     pipeline_result_clear(&res);
     return 0;
@@ -73,7 +113,7 @@ static double amdahl(double t1, double tn, int n)
 static void print_row(const char *method, int nthreads, const point *p, const point *one,
                       double median_s)
 {
-    printf("%-12s %7d %8.3f", method, nthreads, p->total_s);
+    printf("%-12s %7d %8.3f %6.2f", method, nthreads, p->total_s, p->cpu_s);
     for (int k = 0; k < PIPE_NSTAGES; k++)
         printf(" %7.3f", p->stage_s[k]);
     printf(" %7.2f %8.3f\n", one->total_s / p->total_s, median_s);
@@ -92,11 +132,11 @@ static void print_fraction(const char *method, const point *one, const point *pn
     printf("\n");
 }
 
-/* The thread counts: 1, 2, 4 ... up to the cores (at least 1 and 2). */
-static int thread_counts(int *t)
+/* The thread counts: 1, 2, 4 ... up to the CPUs this process may use (at
+ * least 1 and 2). */
+static int thread_counts(const cpu_set_t *all, int *t)
 {
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    int n = 0;
+    int cores = CPU_COUNT(all), n = 0;
     for (int k = 1; n < MAX_T && (k <= cores || k <= 2); k *= 2)
         t[n++] = k;
     return n;
@@ -104,8 +144,13 @@ static int thread_counts(int *t)
 
 static int run_methods(const bench_args *a, const char *cube, char **methods)
 {
-    int t[MAX_T], nt = thread_counts(t);
-    printf("%-12s %7s %8s", "method", "threads", "total_s");
+    cpu_set_t all;
+    if (sched_getaffinity(0, sizeof all, &all) != 0) {
+        fprintf(stderr, "specklab bench --scaling: sched_getaffinity failed\n");
+        return 1;
+    }
+    int t[MAX_T], nt = thread_counts(&all, t);
+    printf("%-12s %7s %8s %6s", "method", "threads", "total_s", "cpu_s");
     for (int k = 0; k < PIPE_NSTAGES; k++)
         printf(" %7s", pipeline_stage_name(k));
     printf(" %7s %8s\n", "speedup", "median_s");
@@ -119,11 +164,11 @@ static int run_methods(const bench_args *a, const char *cube, char **methods)
         point warm, pts[MAX_T], runs[MAX_T][BENCH_MAX_REPEAT];
         double median[MAX_T];
         for (int i = 0; i < nt; i++)   /* untimed: each count plans its own handles */
-            if (measure(cube, id, t[i], !a->estimate, &warm))
+            if (measure(cube, &all, id, t[i], !a->estimate, &warm))
                 return 1;
         for (int r = 0; r < a->repeat; r++)
             for (int i = 0; i < nt; i++)
-                if (measure(cube, id, t[i], !a->estimate, &runs[i][r]))
+                if (measure(cube, &all, id, t[i], !a->estimate, &runs[i][r]))
                     return 1;
         for (int i = 0; i < nt; i++)
             median[i] = best_and_median(runs[i], a->repeat, &pts[i]);
@@ -163,8 +208,8 @@ int bench_scaling_run(const bench_args *a)
         load[0] = NAN;
     printf("specklab bench --scaling: %d^2 x %d frames, noiseless binary, %s plans, %ld cores, "
            "load average %.1f before, fastest of %d runs interleaved over the thread counts "
-           "(their median in median_s); stages in s of that run (pipeline.h, enum "
-           "pipeline_stage)\n", size, frames, a->estimate ? "ESTIMATE" : "MEASURE",
+           "(their median in median_s), each pinned to as many CPUs as threads; cpu_s: every "
+           "thread's CPU time; stages in s of that run (pipeline.h, enum pipeline_stage)\n", size, frames, a->estimate ? "ESTIMATE" : "MEASURE",
            sysconf(_SC_NPROCESSORS_ONLN), load[0], a->repeat);
     rc = run_methods(a, cube, methods);
 free_all:

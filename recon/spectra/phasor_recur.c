@@ -1,19 +1,24 @@
 /* phasor_recur.c - phasor_solve's recursion (phasor.h), pipelined.
  *
  * The recursion must visit the targets in rank order, one after another:
- * each needs the phases of lower rank.  But most of its work does not
- * depend on phases: reading a triple's sums, removing the photon bias,
- * the modulus and the weight (phasor_triple: a square root, a division).
- * So the targets are taken in blocks of about PHASOR_BLOCK triples:
- * while this thread runs the recursion over one block's prepared triples
- * (two complex products each), the other threads prepare the next block,
- * and this one joins them when its recursion is done.
- * With one thread the same preparation runs inline.  Either way each
- * triple is prepared and used by the same arithmetic in the same order,
- * so the phases do not depend on the thread count.
+ * each needs the phases of lower rank.  But most of its work need not
+ * wait for the target before it.  The targets are cut into blocks of
+ * about PHASOR_BLOCK triples (a cut fixed by the graph alone).  While
+ * this thread runs the recursion over block b, the other threads take
+ * block b + 1 in parts: they read each triple's sums, remove the photon
+ * bias, take the modulus and the weight (phasor_triple: a square root, a
+ * division), and when both legs lie before block b, whose phases are
+ * final by then, they also sum the triple's proposal into the target's
+ * "early" sums.  Only the rest, triples with a leg in block b or b + 1
+ * (a few per cent: legs in the same arc of the same ring), is left for
+ * the recursion proper, which starts each target from its early sums.
+ * This thread joins the others once its block is done.
+ * With one thread the same steps run inline.  Either way every target's
+ * sum is its early triples in storage order, then its late ones, by the
+ * same arithmetic, so the phases do not depend on the thread count.
  *
  * Memory: two blocks of (PHASOR_BLOCK + the most triples of one target)
- * x 40 bytes, ~2.7 MB.
+ * x 40 bytes, ~2.7 MB, and 44 bytes per target.
  */
 #include "phasor_int.h"
 
@@ -23,12 +28,27 @@
 
 #define PHASOR_BLOCK 32768
 
-/* A triple ready for the recursion: legs (l1 -1: never used, zero
- * weight), the mean bispectrum, the weight over |B| and |B|. */
+/* A triple left for the recursion: legs, the mean bispectrum, the
+ * weight over |B| and |B|. */
 typedef struct prepped {
     int32_t l1, l2;
     double br, bi, s, mod;
 } prepped;
+
+/* A target's sums over its early triples (consume's z, m and |B| sums),
+ * and how many late ones its slots in the block's buffer hold. */
+typedef struct early {
+    double zr, zi, mr, mi, ms;
+    int32_t nlate;
+} early;
+
+/* What the recursion reads and the preparation may read early: phasors
+ * and known flags of the targets before cut are final. */
+typedef struct recur_state {
+    double *E;
+    unsigned char *known;
+    early *ea;              /* per target */
+} recur_state;
 
 /* A block's preparation, cut into PREP_PARTS parts of its targets that
  * threads claim one at a time: the workers from the start, the caller
@@ -37,24 +57,54 @@ typedef struct prepped {
 #define PREP_PARTS 16
 typedef struct prep_job {
     const phasor_graph *g;
-    int j0, j1;
+    const recur_state *rs;
+    int j0, j1, cut;        /* targets [j0, j1); legs before cut are final */
     prepped *out;
     atomic_int next;        /* the next unclaimed part */
 } prep_job;
 
-/* Prepare targets [j0, j1) into out (indexed from tstart[j0]). */
-static void prep(const phasor_graph *g, int j0, int j1, prepped *out)
+/* Add one triple's proposal, from legs l1, l2 with phasors in E, to the
+ * sums *e: two complex products. */
+static inline void propose(const double *E, int l1, int l2, const prepped *q, early *e)
 {
+    double e1r = E[2 * l1], e1i = E[2 * l1 + 1];
+    double e2r = E[2 * l2], e2i = E[2 * l2 + 1];
+    double pr = e1r * e2r - e1i * e2i, pi = e1r * e2i + e1i * e2r;
+    double xr = pr * q->br + pi * q->bi, xi = pi * q->br - pr * q->bi;
+    e->zr += q->s * xr;
+    e->zi += q->s * xi;
+    e->mr += xr;
+    e->mi += xi;
+    e->ms += q->mod;
+}
+
+/* Prepare targets [j0, j1): early triples (both legs before cut) summed
+ * into rs->ea, late ones into target j's slots of out (indexed from
+ * tstart[j0]).  A triple of zero weight is never used. */
+static void prep(const phasor_graph *g, const recur_state *rs, int j0, int j1, int cut,
+                 prepped *out)
+{
+    int n = g->nfreq;
     int64_t base = g->tstart[j0];
-    for (int j = j0; j < j1; j++)
+    for (int j = j0; j < j1; j++) {
+        early e = {0, 0, 0, 0, 0, 0};
+        prepped *late = out + (g->tstart[j] - base);
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
             double br, bi, w;
             phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
+            if (!(w > 0))
+                continue;
             double mod = sqrt(br * br + bi * bi); /* not hypot: 10x slower */
-            out[t - base] = (prepped){w > 0 ? l1 : -1, l2, br, bi,
-                                      w > 0 && mod > 0 ? w / mod : 0, mod};
+            prepped q = {l1, l2, br, bi, mod > 0 ? w / mod : 0, mod};
+            int a1 = l1 < n ? l1 : l1 - n, a2 = l2 < n ? l2 : l2 - n;
+            if (a1 >= cut || a2 >= cut)
+                late[e.nlate++] = q;
+            else if (rs->known[a1] && rs->known[a2])
+                propose(rs->E, l1, l2, &q, &e);
         }
+        rs->ea[j] = e;
+    }
 }
 
 /* tpool job (and the caller's share): claim and prepare parts until none
@@ -66,43 +116,38 @@ static void prep_job_run(void *ctx, int tid, int n)
     int64_t span = p->j1 - p->j0;
     for (int k; (k = atomic_fetch_add(&p->next, 1)) < PREP_PARTS;) {
         int a = p->j0 + (int)(span * k / PREP_PARTS), b = p->j0 + (int)(span * (k + 1) / PREP_PARTS);
-        prep(p->g, a, b, p->out + (p->g->tstart[a] - p->g->tstart[p->j0]));
+        prep(p->g, p->rs, a, b, p->cut, p->out + (p->g->tstart[a] - p->g->tstart[p->j0]));
     }
 }
 
-/* The recursion over targets [j0, j1), from their prepared triples. */
-static void consume(const phasor_graph *g, int j0, int j1, const prepped *buf, double *E,
-                    unsigned char *known, double *wsum, double *miss)
+/* The recursion over targets [j0, j1): each from its early sums, then
+ * its late triples. */
+static void consume(const phasor_graph *g, const recur_state *rs, int j0, int j1,
+                    const prepped *buf, double *wsum, double *miss)
 {
     int n = g->nfreq;
     int64_t base = g->tstart[j0];
+    double *E = rs->E;
+    unsigned char *known = rs->known;
     for (int j = j0; j < j1; j++) {
         if (g->seed[j]) {
             known[j] = 1;
             continue;
         }
-        double zr = 0, zi = 0, mr = 0, mi = 0, ms = 0;
-        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-            const prepped *q = &buf[t - base];
+        early e = rs->ea[j];
+        const prepped *late = buf + (g->tstart[j] - base);
+        for (int k = 0; k < e.nlate; k++) {
+            const prepped *q = &late[k];
             int l1 = q->l1, l2 = q->l2;
-            if (l1 < 0 || !known[l1 < n ? l1 : l1 - n] || !known[l2 < n ? l2 : l2 - n])
-                continue;
-            double e1r = E[2 * l1], e1i = E[2 * l1 + 1];
-            double e2r = E[2 * l2], e2i = E[2 * l2 + 1];
-            double pr = e1r * e2r - e1i * e2i, pi = e1r * e2i + e1i * e2r;
-            double xr = pr * q->br + pi * q->bi, xi = pi * q->br - pr * q->bi;
-            zr += q->s * xr;
-            zi += q->s * xi;
-            mr += xr;
-            mi += xi;
-            ms += q->mod;
+            if (known[l1 < n ? l1 : l1 - n] && known[l2 < n ? l2 : l2 - n])
+                propose(E, l1, l2, q, &e);
         }
-        double m = hypot(zr, zi);
+        double m = hypot(e.zr, e.zi);
         if (m > 0) {
-            phasor_set(E, n, j, zr / m, zi / m);
+            phasor_set(E, n, j, e.zr / m, e.zi / m);
             known[j] = 1;
-            *wsum += ms;
-            *miss += ms - (mr * zr + mi * zi) / m;
+            *wsum += e.ms;
+            *miss += e.ms - (e.mr * e.zr + e.mi * e.zi) / m;
         }
     }
 }
@@ -124,20 +169,24 @@ int phasor_recur(const phasor_graph *g, double *E, unsigned char *known, double 
         most = g->tstart[j + 1] - g->tstart[j] > most ? g->tstart[j + 1] - g->tstart[j] : most;
     size_t cap = (size_t)PHASOR_BLOCK + (size_t)most;
     prepped *buf[2] = {malloc(cap * sizeof(prepped)), malloc(cap * sizeof(prepped))};
-    if (!buf[0] || !buf[1]) {
+    recur_state rs = {E, known, malloc((size_t)n * sizeof(early))};
+    if (!buf[0] || !buf[1] || !rs.ea) {
         free(buf[0]);
         free(buf[1]);
+        free(rs.ea);
         return SL_ENOMEM;
     }
     double wsum = 0, miss = 0;
     int j0 = 1, j1 = block_end(g, 1), cur = 0;
-    prep(g, j0, j1, buf[0]);
+    prep(g, &rs, j0, j1, 1, buf[0]);
     while (j0 < n) {
         int more = j1 < n, j2 = more ? block_end(g, j1) : n;
-        prep_job next = {g, j1, j2, buf[1 - cur], 0};
+        /* block j1..j2 runs beside the recursion over j0..j1: its legs
+         * before j0 are final */
+        prep_job next = {g, &rs, j1, j2, j0, buf[1 - cur], 0};
         if (par && more)
             tpool_submit(g->pool, prep_job_run, &next);
-        consume(g, j0, j1, buf[cur], E, known, &wsum, &miss);
+        consume(g, &rs, j0, j1, buf[cur], &wsum, &miss);
         if (more) {
             prep_job_run(&next, 0, 1); /* the caller's share: what is left */
             if (par)
@@ -149,6 +198,7 @@ int phasor_recur(const phasor_graph *g, double *E, unsigned char *known, double 
     }
     free(buf[0]);
     free(buf[1]);
+    free(rs.ea);
     *misfit = wsum > 0 ? miss / wsum : 0;
     return SL_OK;
 }

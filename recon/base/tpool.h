@@ -6,7 +6,7 @@
  * creation per call (a wake-up costs ~10-50 us, the caller's share runs
  * meanwhile).  For bit-identical results with any n, give each output
  * element one owner whose order of operations does not depend on n: a
- * share fixed by (tid, n) (tsm_phase.c), or tasks claimed from a queue,
+ * share fixed by (tid, n) (powspec_frames.c), or tasks claimed from a queue,
  * each computing its elements whole (tsm_accum.c).
  *
  * Not re-entrant: one job at a time per pool (tpool_run, or tpool_submit

@@ -291,9 +291,9 @@ typedef struct tsm_phase tsm_phase;
 
 tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err);
 void tsm_phase_free(tsm_phase *p);
-/* Run tsm_phase_inputs and tsm_phase_solve on pool's threads (NULL: the
- * caller's alone), each thread a contiguous share of the angles with its
- * own scratch: every angle is computed as by one thread, so the results
+/* Run tsm_phase_inputs, tsm_phase_solve and tsm_phase_align_all on pool's
+ * threads (NULL: the caller's alone): each thread claims angles as it
+ * frees up and computes each whole with its own scratch, so the results
  * do not depend on the count.  The pool is kept by reference.  SL_ENOMEM. */
 int tsm_phase_set_pool(tsm_phase *p, tpool *pool);
 int tsm_phase_npairs(const tsm_phase *p);
@@ -330,14 +330,19 @@ double tsm_phase_centroid(const float *p, int ns, double frac);
 double tsm_phase_align(const float complex *o, const float complex *ref, int nf, int ns,
                        double range, double *scr);
 void tsm_phase_shift(float complex *sp, int nf, int ns, double c);
+/* Every angle a of spec (nangles x nfreq) aligned to ref's angle a
+ * (tsm_phase_align within range px) and shifted by it, on p's threads;
+ * dsum (nangles floats, or NULL) gets each shift added. */
+void tsm_phase_align_all(tsm_phase *p, float complex *spec, const float complex *ref, int ns,
+                         double range, float *dsum);
 /* Step 5's alignment to the reprojected image, on spectra spec (nangles of
  * rad x nf, s = 0 reference as above): up to iters rounds of gridding FBP
  * into img (npix pixels), template = the part above frac x its maximum,
- * its slices into tmpl (nangles x nf), every angle aligned to its slice;
- * all undone unless the FBP's negative energy went down.  dsum: nangles
- * floats, scr: 2 nf doubles (scratch). */
-int tsm_phase_reproj(radon *rad, float complex *spec, int nf, size_t npix, int iters,
-                     double frac, float *img, float complex *tmpl, float *dsum, double *scr);
+ * its slices into tmpl (nangles x nf), every angle aligned to its slice
+ * (tsm_phase_align_all on p's threads); all undone unless the FBP's
+ * negative energy went down.  dsum: nangles floats (scratch). */
+int tsm_phase_reproj(tsm_phase *p, radon *rad, float complex *spec, size_t npix, int iters,
+                     double frac, float *img, float complex *tmpl, float *dsum);
 
 /* The sums of steps (1)-(2) as flat doubles (the frame count among
  * them), for a sequence split over processes: tsm_partial writes them to buf

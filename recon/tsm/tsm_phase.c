@@ -1,6 +1,7 @@
 /* tsm_phase.c - the 1-D phases of TSM (see tsm.h): recovery from the
- * bispectrum, and the per-angle shift (centroid, alignment, alignment to
- * the reprojected image) of step 5.
+ * bispectrum, and step 5's alignment of every angle on the threads (the
+ * shift of one angle, and the rounds against the reprojected image, are
+ * in tsm_align.c).
  *
  * The problem.  Per angle the unknowns are phi(2..J); every stored pair
  * q = (u1, u2) gives a closure residual r = beta - phi(u1) - phi(u2) +
@@ -34,13 +35,14 @@
  * multiply-adds, then per step one pass over the pairs (~25 flops each),
  * two triangular solves and J sin/cos: at J = 100, 180 angles, 10 steps
  * ~40 ms on one core.  Everything for one angle (pairs, factor) stays in
- * L2 while that angle is solved.  With a pool (tsm_phase_set_pool) each
- * thread takes a contiguous share of the angles with its own scratch
- * (phase_ws), for the inputs and the solve alike.
+ * L2 while that angle is solved.  With a pool (tsm_phase_set_pool) the
+ * threads claim angles as they free up, each with its own scratch
+ * (phase_ws), for the inputs, the solve and the alignment alike.
  */
 #include "tsm.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -55,6 +57,7 @@ typedef struct phase_ws {
     double *x, *y, *g, *g0;  /* nf: iterate, extrapolated point, step,
                               * gradient */
     double *acc;             /* 2 np: one angle's averaged bispectrum */
+    double *scr;             /* 2 nf: tsm_phase_align's */
 } phase_ws;
 
 struct tsm_phase {
@@ -72,7 +75,7 @@ struct tsm_phase {
 static void ws_free(phase_ws *w)
 {
     free(w->L), free(w->er), free(w->ei), free(w->x), free(w->y), free(w->g);
-    free(w->g0), free(w->acc);
+    free(w->g0), free(w->acc), free(w->scr);
     memset(w, 0, sizeof *w);
 }
 
@@ -157,7 +160,8 @@ static int ws_alloc(const tsm_phase *p, phase_ws *w)
     w->g = malloc(nf * sizeof *w->g);
     w->g0 = malloc(nf * sizeof *w->g0);
     w->acc = malloc((2 * (size_t)p->np + 1) * sizeof *w->acc);
-    if (!w->L || !w->er || !w->ei || !w->x || !w->y || !w->g || !w->g0 || !w->acc) {
+    w->scr = malloc(2 * nf * sizeof *w->scr);
+    if (!w->L || !w->er || !w->ei || !w->x || !w->y || !w->g || !w->g0 || !w->acc || !w->scr) {
         ws_free(w);
         return SL_ENOMEM;
     }
@@ -185,11 +189,19 @@ static void run(const tsm_phase *p, tpool_fn job, void *ctx)
         job(ctx, 0, 1);
 }
 
-/* The angles of thread tid of n: a contiguous share, fixed by (tid, n). */
-static void share(int nang, int tid, int n, int *a0, int *a1)
+/* Angles are claimed ANG_CLAIM at a time by whichever thread is free:
+ * each angle is computed whole by one thread from its own inputs (the
+ * thread's workspace is scratch), so the bits do not depend on who takes
+ * it.  Fixed halves left one thread idle whenever the shared host slowed
+ * the other (one half took 2x the other's time in a 512^2 run). */
+enum { ANG_CLAIM = 2 };
+
+/* The next angles [*a0, *a1) for the caller; 0 when none is left. */
+static int claim(atomic_int *next, int nang, int *a0, int *a1)
 {
-    *a0 = (int)((long)tid * nang / n);
-    *a1 = (int)((long)(tid + 1) * nang / n);
+    *a0 = atomic_fetch_add(next, ANG_CLAIM);
+    *a1 = *a0 + ANG_CLAIM < nang ? *a0 + ANG_CLAIM : nang;
+    return *a0 < nang;
 }
 
 /* ---- inputs ------------------------------------------------------------ */
@@ -201,6 +213,7 @@ typedef struct inputs_job {
     tsm_weight weight;
     int kmax;
     const int *ge;
+    atomic_int next;
 } inputs_job;
 
 static void inputs_angle(const inputs_job *j, phase_ws *ws, int a);
@@ -208,10 +221,10 @@ static void inputs_angle(const inputs_job *j, phase_ws *ws, int a);
 static void inputs_run(void *ctx, int tid, int n)
 {
     inputs_job *j = ctx;
-    int a0, a1;
-    share(j->p->nang, tid, n, &a0, &a1);
-    for (int a = a0; a < a1; a++)
-        inputs_angle(j, &j->p->ws[tid], a);
+    (void)n;
+    for (int a0, a1; claim(&j->next, j->p->nang, &a0, &a1);)
+        for (int a = a0; a < a1; a++)
+            inputs_angle(j, &j->p->ws[tid], a);
 }
 
 void tsm_phase_inputs(tsm_phase *p, const double *bre, const double *bim, double nframes,
@@ -238,7 +251,7 @@ void tsm_phase_inputs(tsm_phase *p, const double *bre, const double *bim, double
     }
     for (int q = 0; q < np; q++)
         p->qs[pos[p->kq[q]]++] = q;
-    inputs_job j = {p, bre, bim, pm, pb, n, g, sbar, weight, kmax, ge};
+    inputs_job j = {p, bre, bim, pm, pb, n, g, sbar, weight, kmax, ge, 0};
     run(p, inputs_run, &j);
 }
 
@@ -444,144 +457,60 @@ static void solve_angle(const tsm_phase *p, phase_ws *ws, int a, int iters, doub
         phase[u] = remainder(x[u], 2 * M_PI);
 }
 
-/* ---- the per-angle shift (step 5 of tsm.h) ------------------------------- */
+/* ---- step 5's alignment of every angle (tsm_align.c: one angle) ------- */
 
-double tsm_phase_centroid(const float *p, int ns, double frac)
+typedef struct align_job {
+    tsm_phase *p;
+    float complex *spec;
+    const float complex *ref;
+    int ns;
+    double range;
+    float *dsum;
+    atomic_int next;
+} align_job;
+
+static void align_run(void *ctx, int tid, int n)
 {
-    float mx = 0;
-    for (int i = 0; i < ns; i++)
-        mx = p[i] > mx ? p[i] : mx;
-    double thr = frac * mx, s0 = 0, s1 = 0;
-    for (int i = 0; i < ns; i++)
-        if (p[i] > thr)
-            s0 += p[i] - thr, s1 += (p[i] - thr) * (i - ns / 2);
-    return s0 > 0 ? s1 / s0 : 0.0;
+    align_job *j = ctx;
+    int nf = j->p->nf;
+    (void)n;
+    for (int a0, a1; claim(&j->next, j->p->nang, &a0, &a1);)
+        for (int a = a0; a < a1; a++) {
+            float complex *o = j->spec + (size_t)a * nf;
+            double d = tsm_phase_align(o, j->ref + (size_t)a * nf, nf, j->ns, j->range,
+                                       j->p->ws[tid].scr);
+            tsm_phase_shift(o, nf, j->ns, d);
+            if (j->dsum)
+                j->dsum[a] += (float)d;
+        }
 }
 
-/* The maximum of C(d) by a 0.5 px grid then Newton steps. */
-double tsm_phase_align(const float complex *o, const float complex *ref, int nf, int ns,
-                       double range, double *scr)
+void tsm_phase_align_all(tsm_phase *p, float complex *spec, const float complex *ref, int ns,
+                         double range, float *dsum)
 {
-    /* x_j = o conj(ref) as (re, im) in scr; C(d) by phasor recurrence. */
-    for (int j = 1; j < nf; j++) {
-        double ar = crealf(o[j]), ai = cimagf(o[j]), br = crealf(ref[j]), bi = cimagf(ref[j]);
-        scr[2 * j] = ar * br + ai * bi, scr[2 * j + 1] = ai * br - ar * bi;
-    }
-    double best = 0, bestc = -HUGE_VAL;
-    for (double d = -range; d <= range + 1e-9; d += 0.5) {
-        double zr = cos(2 * M_PI * d / ns), zi = sin(2 * M_PI * d / ns);
-        double wr = 1, wi = 0, c = 0;
-        for (int j = 1; j < nf; j++) {
-            double t = wr * zr - wi * zi;
-            wi = wr * zi + wi * zr, wr = t;
-            c += scr[2 * j] * wr - scr[2 * j + 1] * wi;
-        }
-        if (c > bestc)
-            bestc = c, best = d;
-    }
-    for (int it = 0; it < 3; it++) {   /* Newton on C'(d) = 0 */
-        double zr = cos(2 * M_PI * best / ns), zi = sin(2 * M_PI * best / ns);
-        double wr = 1, wi = 0, g = 0, hs = 0;
-        for (int j = 1; j < nf; j++) {
-            double t = wr * zr - wi * zi, k = 2 * M_PI * j / ns;
-            wi = wr * zi + wi * zr, wr = t;
-            double re = scr[2 * j] * wr - scr[2 * j + 1] * wi;
-            double im = scr[2 * j] * wi + scr[2 * j + 1] * wr;
-            g -= k * im, hs -= k * k * re;
-        }
-        if (hs >= 0)
-            break;
-        double step = -g / hs;
-        best += fabs(step) > 0.5 ? copysign(0.5, step) : step;
-    }
-    return best;
-}
-
-void tsm_phase_shift(float complex *sp, int nf, int ns, double c)
-{
-    for (int j = 1; j < nf; j++) {   /* move s = c to s = 0 */
-        double ang = 2 * M_PI * j * c / ns;
-        sp[j] *= CMPLXF((float)cos(ang), (float)sin(ang));
-    }
+    align_job j = {p, spec, ref, ns, range, dsum, 0};
+    run(p, align_run, &j);
 }
 
 typedef struct solve_job {
     tsm_phase *p;
     int iters;
     double *phase;
+    atomic_int next;
 } solve_job;
 
 static void solve_run(void *ctx, int tid, int n)
 {
     solve_job *j = ctx;
-    int a0, a1;
-    share(j->p->nang, tid, n, &a0, &a1);
-    for (int a = a0; a < a1; a++)
-        solve_angle(j->p, &j->p->ws[tid], a, j->iters, j->phase + (size_t)a * j->p->nf);
-}
-
-/* Step 5's global alignment (tsm.h).  Why: the shift error left by the
- * centroids and the neighbour alignment varies slowly with angle
- * (harmonics 3, 5, 7 of theta, ~0.2 px), which neighbours share and so
- * cannot see; the template is one 2-D image, so its slices are
- * consistent by construction, and the threshold (the nonlinearity) drops
- * the smeared halo that inconsistent shifts leave, which a linear
- * reprojection would hand back unchanged.  Measured against the oracle
- * shifts (each angle's best fit to the true slice), 200^2 bench six-star,
- * 100 frames, 180 angles, reference, seed 1: residual 0.21 -> 0.09 px rms,
- * c 0.960 -> 0.985 (0.986 with the oracle shifts).  The threshold: c on
- * seeds 1-4 at 0.1 / 0.2 / 0.3 / 0.5 of the peak 0.979 / 0.984 / 0.983 /
- * 0.980; 0 (positivity alone) makes it worse (0.960 -> 0.954 on seed 1),
- * since the template then hands each slice back to itself.  The rounds
- * are kept only if they lower the FBP's negative energy (sum of squares
- * of the negative pixels over all), the artefacts inconsistent shifts
- * leave: on an extended object (nothing negative) the template's
- * threshold would otherwise bias the shifts (c high-passed 0.907 -> 0.902
- * with a reference).  Cost per round: one FBP, one slicing, nang alignments
- * (~4 ms at 200^2, 180 angles), plus one FBP. */
-int tsm_phase_reproj(radon *rad, float complex *spec, int nf, size_t npix, int iters,
-                     double frac, float *img, float complex *tmpl, float *dsum, double *scr)
-{
-    int nang = radon_nangles(rad), ns = radon_nproj(rad), st;
-    double neg0 = 0;
-    for (int a = 0; a < nang; a++)
-        dsum[a] = 0;
-    for (int it = 0;; it++) {
-        if ((st = radon_fbp_slices(rad, spec, img)) != SL_OK)
-            return st;
-        float mx = 0;
-        double sneg = 0, sall = 0;
-        for (size_t i = 0; i < npix; i++) {
-            double v = img[i];
-            mx = img[i] > mx ? img[i] : mx;
-            sall += v * v, sneg += v < 0 ? v * v : 0;
-        }
-        double neg = sall > 0 ? sneg / sall : 0;
-        if (it == 0)
-            neg0 = neg;
-        if (it == iters || !(mx > 0)) {
-            if (it > 0 && !(neg < neg0))   /* no more consistent: undo all */
-                for (int a = 0; a < nang; a++)
-                    tsm_phase_shift(spec + (size_t)a * nf, nf, ns, -dsum[a]);
-            return SL_OK;
-        }
-        float thr = (float)(frac * mx);
-        for (size_t i = 0; i < npix; i++)
-            img[i] = img[i] > thr ? img[i] - thr : 0.0f;
-        if ((st = radon_slices(rad, img, tmpl)) != SL_OK)
-            return st;
-        for (int a = 0; a < nang; a++) {
-            float complex *o = spec + (size_t)a * nf;
-            double d = tsm_phase_align(o, tmpl + (size_t)a * nf, nf, ns, 3.0, scr);
-            tsm_phase_shift(o, nf, ns, d);
-            dsum[a] += (float)d;
-        }
-    }
+    (void)n;
+    for (int a0, a1; claim(&j->next, j->p->nang, &a0, &a1);)
+        for (int a = a0; a < a1; a++)
+            solve_angle(j->p, &j->p->ws[tid], a, j->iters, j->phase + (size_t)a * j->p->nf);
 }
 
 int tsm_phase_solve(tsm_phase *p, int iters, double *phase)
 {
-    solve_job j = {p, iters, phase};
+    solve_job j = {p, iters, phase, 0};
     run(p, solve_run, &j);
     return SL_OK;
 }

@@ -175,18 +175,15 @@ static int result_align(tsm *t, float *img, double cfrac, int *moved)
     for (int it = 0; nbr > 0 && it < 3; it++) {
         for (int a = 0; a < t->nang; a++)
             neighbour_sum(t, a, nbr, t->sref + (size_t)a * nf);
-        for (int a = 0; a < t->nang; a++)
-            tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns,
-                            tsm_phase_align(t->ospec + (size_t)a * nf, t->sref + (size_t)a * nf,
-                                            nf, ns, 3.0, t->pr));
+        tsm_phase_align_all(t->ph, t->ospec, t->sref, ns, 3.0, NULL);
     }
     int riters = t->o.reproj_iters < 0 ? 0 : t->o.reproj_iters ? t->o.reproj_iters : 3;
     *moved = nbr > 0 || riters > 0;
     /* t->proj is free until the final projections: the rounds' shifts */
     if (riters > 0)
-        return tsm_phase_reproj(t->rad, t->ospec, nf, (size_t)t->w * t->h, riters,
+        return tsm_phase_reproj(t->ph, t->rad, t->ospec, (size_t)t->w * t->h, riters,
                                 t->o.reproj_frac > 0 ? t->o.reproj_frac : 0.2, img,
-                                t->sref, t->proj, t->pr);
+                                t->sref, t->proj);
     return SL_OK;
 }
 

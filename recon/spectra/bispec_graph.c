@@ -36,6 +36,47 @@ static int cmp_hfreq(const void *x, const void *y)
     return (a->p > b->p) - (a->p < b->p);
 }
 
+/* The u2 disk: offsets with 0 < |u2| <= R2 that are in S, by row, and
+ * each row's first entry at or past each dp (dfirst). */
+static int build_disk(bispec *b)
+{
+    int r2 = b->o.r2_px;
+    /* room for the whole (2 R2 + 1)^2 box: at most 0.5 MB, and one pass */
+    size_t box = (size_t)(2 * r2 + 1) * (2 * r2 + 1);
+    b->doff = bispec_alloc(b, box * sizeof *b->doff);
+    b->dleg = bispec_alloc(b, box * sizeof *b->dleg);
+    b->nrow = 2 * r2 + 1;
+    b->drow = bispec_alloc(b, ((size_t)b->nrow + 1) * sizeof *b->drow);
+    if (!b->doff || !b->dleg || !b->drow)
+        return SL_ENOMEM;
+    b->nd = 0;
+    for (int dq = -r2; dq <= r2; dq++)
+        for (int dp = -r2, first = 1; dp <= r2; dp++, first = 0) {
+            if (first)
+                b->drow[dq + r2] = (int32_t)b->nd;
+            int leg = b->lut[(dq + b->qm) * b->lw + dp + b->pm];
+            if (dp * dp + dq * dq <= r2 * r2 && leg > 0) {
+                b->doff[b->nd] = dq * b->lw + dp;
+                b->dleg[b->nd++] = leg;
+            }
+        }
+    b->drow[b->nrow] = (int32_t)b->nd;
+    /* dfirst[r][dp + R2]: row r's first entry with an offset >= dp (one
+     * past the row's end for dp = R2 + 1) */
+    size_t rw = (size_t)2 * r2 + 2;
+    if (!(b->dfirst = bispec_alloc(b, (size_t)b->nrow * rw * sizeof *b->dfirst)))
+        return SL_ENOMEM;
+    for (int r = 0; r < b->nrow; r++) {
+        int k = b->drow[r], dq = r - r2;
+        for (int dp = -r2; dp <= r2 + 1; dp++) {
+            while (k < b->drow[r + 1] && b->doff[k] - dq * b->lw < dp)
+                k++;
+            b->dfirst[(size_t)r * rw + dp + r2] = k;
+        }
+    }
+    return SL_OK;
+}
+
 /* The support's half-plane frequencies in rank order, the lut, the disk
  * and the seeds. */
 static int build_freqs(bispec *b)
@@ -86,41 +127,7 @@ static int build_freqs(bispec *b)
         b->seed[j] = (p == 1 && q == 0) || (p == 0 && q == 1);
     }
     free(hf);
-    /* The u2 disk: offsets with 0 < |u2| <= R2 that are in S (room for
-     * the whole (2 R2 + 1)^2 box: at most 0.5 MB, and one pass). */
-    size_t box = (size_t)(2 * r2 + 1) * (2 * r2 + 1);
-    b->doff = bispec_alloc(b, box * sizeof *b->doff);
-    b->dleg = bispec_alloc(b, box * sizeof *b->dleg);
-    b->nrow = 2 * r2 + 1;
-    b->drow = bispec_alloc(b, ((size_t)b->nrow + 1) * sizeof *b->drow);
-    if (!b->doff || !b->dleg || !b->drow)
-        return SL_ENOMEM;
-    b->nd = 0;
-    for (int dq = -r2; dq <= r2; dq++)
-        for (int dp = -r2, first = 1; dp <= r2; dp++, first = 0) {
-            if (first)
-                b->drow[dq + r2] = (int32_t)b->nd;
-            int leg = b->lut[(dq + b->qm) * b->lw + dp + b->pm];
-            if (dp * dp + dq * dq <= r2 * r2 && leg > 0) {
-                b->doff[b->nd] = dq * b->lw + dp;
-                b->dleg[b->nd++] = leg;
-            }
-        }
-    b->drow[b->nrow] = (int32_t)b->nd;
-    /* dfirst[r][dp + R2]: row r's first entry with an offset >= dp (one
-     * past the row's end for dp = R2 + 1) */
-    size_t rw = (size_t)2 * r2 + 2;
-    if (!(b->dfirst = bispec_alloc(b, (size_t)b->nrow * rw * sizeof *b->dfirst)))
-        return SL_ENOMEM;
-    for (int r = 0; r < b->nrow; r++) {
-        int k = b->drow[r], dq = r - r2;
-        for (int dp = -r2; dp <= r2 + 1; dp++) {
-            while (k < b->drow[r + 1] && b->doff[k] - dq * b->lw < dp)
-                k++;
-            b->dfirst[(size_t)r * rw + dp + r2] = k;
-        }
-    }
-    return SL_OK;
+    return build_disk(b);
 }
 
 /* Is disk entry k a stored triple of target j (legs of lower rank,

@@ -255,6 +255,7 @@ static bispec *direct_bispec(const stream *s, const pipeline_opts *o,
      * the kernel's passes over the accumulators, one per batch, cost
      * more than its products (512^2 x 400: 25 passes). */
     bo->batch_bytes = (size_t)(budget * 1048576.0 / 4);
+    bo->budget_bytes = (size_t)(budget * 1048576.0);   /* the refinement's too */
     if (o->r2_px <= 0)
         bo->r2_px = pipe_direct_r2(s->w, s->h, support, rcut, snr_acc, budget,
                                    bo->batch_bytes, &bounded);

@@ -120,6 +120,10 @@ typedef struct bispec_opts {
     int refine_iters;             /* least-squares passes after recursion;
                                    * -1: as the recursion's misfit asks
                                    * (phasor_solve) */
+    size_t budget_bytes;          /* the handle's memory budget (0: none):
+                                   * the refinement's lists get what the
+                                   * accumulators and tables leave of it,
+                                   * at least a quarter */
     double taper_frac;            /* cosine roll-off over this outer fraction
                                      of the cut-off radius (0 = hard edge) */
 } bispec_opts;
@@ -162,6 +166,9 @@ int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
 /* The phase recursion's weighted closure misfit (phasor_solve), NAN
  * before the phases are recovered. */
 double bispec_misfit(const bispec *b);
+/* Bytes the last phase recovery's refinement took (its lists, planes and
+ * scratch; 0: none ran). */
+size_t bispec_refine_bytes(const bispec *b);
 /* Recover the phases (recursion + opts.refine_iters LS passes; cached
  * until the next bispec_add).  phase (w*h, FFT order, radians, odd:
  * phi(-u) = -phi(u)) and known (w*h, 1 where recovered) may be NULL.

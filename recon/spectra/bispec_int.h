@@ -70,6 +70,7 @@ struct bispec {
     unsigned char *known;
     int phased;
     double misfit;         /* the recursion's (phasor_solve) */
+    size_t refine_used;    /* bytes the last refinement took */
     fftw_complex *cin;       /* image: h*wc half spectrum */
     double *cout;            /* image: w*h */
     fftw_plan iplan;

@@ -17,6 +17,9 @@ static void graph_view(const bispec *b, phasor_graph *g)
         .accd = b->accd, .accf = b->accf, .acc2d = b->acc2d,
         .acc2f = b->acc2f, .nframes = n, .pool = b->pool, .weight = b->o.weight,
         .refine_weight = b->o.refine_weight,
+        .refine_bytes = b->o.budget_bytes == 0 ? 0
+                      : b->o.budget_bytes > b->mem + b->o.budget_bytes / 4
+                            ? b->o.budget_bytes - b->mem : b->o.budget_bytes / 4,
         .xsum = ph ? b->xsum : NULL, .xscale = ph ? gain / n : 0,
         .bconst = ph ? 2.0 * gain * gain * b->w3sum / n + 3.0 * gain * b->rw3 : 0};
 }
@@ -49,6 +52,7 @@ int bispec_triple(bispec *b, size_t t, int u1[2], int u2[2], double *bre,
 }
 
 double bispec_misfit(const bispec *b) { return b->phased ? b->misfit : NAN; }
+size_t bispec_refine_bytes(const bispec *b) { return b && b->phased ? b->refine_used : 0; }
 
 int bispec_phase(bispec *b, double *phase, unsigned char *known)
 {
@@ -60,6 +64,7 @@ int bispec_phase(bispec *b, double *phase, unsigned char *known)
     if (!b->phased) {
         phasor_graph g;
         graph_view(b, &g);
+        g.refine_used = &b->refine_used;
         int rc = phasor_solve(&g, b->o.refine_iters, b->work, b->phi,
                               b->known, &b->misfit);
         if (rc != SL_OK)

@@ -63,6 +63,10 @@ typedef struct phasor_graph {
                                 * least-squares fit wants (six-star at 1000
                                 * photons: c 0.825 with |B|, 0.886), while
                                 * the greedy recursion does best with |B| */
+    size_t refine_bytes;       /* the refinement's memory at most (0: no
+                                * bound; phasor_refine.c) */
+    size_t *refine_used;       /* when set: gets the bytes the refinement
+                                * took (0: it did not run) */
 } phasor_graph;
 
 /* The legs, the bias-corrected mean bispectrum and the weight of triple
@@ -84,12 +88,14 @@ size_t phasor_work_doubles(int nfreq);
  * (iters < 0: PHASOR_AUTO_ITERS when the misfit exceeds
  * PHASOR_AUTO_MISFIT, else none) of weighted least squares in phasor
  * form (Jacobi) over each target's triples of weight >= PHASOR_REFINE_REL
- * x its largest (listed once, 24 bytes each, allocated here): every
+ * x its largest (listed once, 24 bytes each, allocated here; within
+ * g->refine_bytes each target keeps at most a common number, its
+ * strongest): every
  * triple proposes a phasor for each of its three legs from the other
  * two, phi_j = arg of the sum of the proposals, seeds held; a round that
  * does not lower the weighted closure misfit is undone and ends it, as
  * does one that lowers it by less than 1e-3 of itself.  Cost: the recursion one
- * pass over the triples; refining two more to list them, then
+ * pass over the triples; refining three more to count and list them, then
  * O(strong triples) per round (~0.07 s per round at 200^2, R2 = 28).
  * Threads (pool): the recursion prepares its next block of triples on
  * the workers while the caller walks the current one (phasor_recur.c);

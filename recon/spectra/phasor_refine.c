@@ -17,6 +17,14 @@
  * targets), each summed whole into its own proposal plane, and the
  * planes are added in chunk order: the same bits on any number of
  * threads.  The chunks stay separate lists (24 bytes a triple, once).
+ *
+ * Memory: the lists are counted first and allocated to size.  Within
+ * phasor_graph.refine_bytes every target keeps its strong triples up to a
+ * common cap, the largest that fits, and a target over it its strongest
+ * (the weak ones, 1 % of its best, add least); without the bound the
+ * lists took up to 3x the accumulators (a quarter of the triples at 24
+ * bytes, against 8), outside the memory budget.  Counting costs one more
+ * pass over the triples (three where two were).
  */
 #include "phasor_int.h"
 
@@ -58,73 +66,168 @@ static void add_leg(double *Z, int n, int l, double zr, double zi)
 typedef struct refine_ctx {
     const phasor_graph *g;
     const unsigned char *known;
+    double *wmax;                /* per target: its largest usable weight */
+    int32_t *nstrong;            /* per target: its strong triples */
+    int32_t kcap;                /* per target at most this many listed */
+    size_t scratch;              /* bytes of the selection's scratch, at most */
     strong *part[REFINE_CHUNKS]; /* strong triples of target block k */
     int64_t npart[REFINE_CHUNKS]; /* -1: out of memory */
     const double *E;
     double *zc;                  /* REFINE_CHUNKS planes of 2 nfreq */
     double cost[REFINE_CHUNKS];
-    int fail;
 } refine_ctx;
 
-/* The strong triples of targets [j0, j1): of each target's triples with
- * known legs, those of weight >= PHASOR_REFINE_REL x that target's
- * largest, so every frequency keeps its best constraints (a threshold on
- * the global largest weight kept only the few triples near the origin,
- * where |B| is larger by orders of magnitude).  NULL when out of memory
- * (or none: *n_out 0). */
-static strong *strong_block(const phasor_graph *g, const unsigned char *known, int j0, int j1,
-                            int64_t *n_out)
+static int chunk_start(int n, int k) { return (int)((int64_t)n * k / REFINE_CHUNKS); }
+
+/* Triple t of target j as a strong one, or 0 when it is not: legs known,
+ * weight and |B| > 0, weight >= PHASOR_REFINE_REL x wmax (wmax 0: any);
+ * *w its weight. */
+static int strong_at(const refine_ctx *c, int j, int64_t t, double wmax, strong *q, double *w)
 {
-    int n = g->nfreq;
-    int64_t cap = 0, ns = 0;
-    strong *s = NULL;
-    for (int j = j0 < 1 ? 1 : j0; j < j1; j++) {
-        if (!known[j])
-            continue;
-        double wmax = 0;
-        for (int pass = 0; pass < 2; pass++)
-            for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-                int l1, l2;
-                double br, bi, w;
-                phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
-                double mod = sqrt(br * br + bi * bi);
-                if (!known[l1 % n] || !known[l2 % n] || !(w > 0) || !(mod > 0))
-                    continue;
-                if (pass == 0) {
-                    wmax = fmax(wmax, w);
-                    continue;
-                }
-                if (w < PHASOR_REFINE_REL * wmax)
-                    continue;
-                if (ns == cap) {
-                    cap = cap ? 2 * cap : 4096;
-                    strong *p = realloc(s, sizeof *p * (size_t)cap);
-                    if (!p) {
-                        free(s);
-                        *n_out = -1;
-                        return NULL;
-                    }
-                    s = p;
-                }
-                s[ns++] = (strong){j, l1, l2, (float)(br / mod), (float)(bi / mod), (float)w};
-            }
-    }
-    *n_out = ns;
-    return s;
+    int n = c->g->nfreq, l1, l2;
+    double br, bi;
+    phasor_triple(c->g, j, t, &l1, &l2, &br, &bi, w);
+    double mod = sqrt(br * br + bi * bi);
+    if (!c->known[l1 % n] || !c->known[l2 % n] || !(*w > 0) || !(mod > 0) ||
+        *w < PHASOR_REFINE_REL * wmax)
+        return 0;
+    *q = (strong){j, l1, l2, (float)(br / mod), (float)(bi / mod), (float)*w};
+    return 1;
 }
 
+/* tpool job: each known target's largest weight and its number of strong
+ * triples, those of weight >= PHASOR_REFINE_REL x that largest, so every
+ * frequency keeps its best constraints (a threshold on the global largest
+ * weight kept only the few triples near the origin, where |B| is larger
+ * by orders of magnitude). */
+static void count_job(void *ctx, int tid, int nthr)
+{
+    refine_ctx *c = ctx;
+    const phasor_graph *g = c->g;
+    strong q;
+    double w;
+    for (int k = tid; k < REFINE_CHUNKS; k += nthr)
+        for (int j = chunk_start(g->nfreq, k); j < chunk_start(g->nfreq, k + 1); j++) {
+            double wmax = 0;
+            int32_t ns = 0;
+            if (j > 0 && c->known[j]) {
+                for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
+                    if (strong_at(c, j, t, 0, &q, &w))
+                        wmax = fmax(wmax, w);
+                for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
+                    ns += strong_at(c, j, t, wmax, &q, &w);
+            }
+            c->wmax[j] = wmax, c->nstrong[j] = ns;
+        }
+}
+
+/* Weight descending, then storage order: a total order, so the kcap
+ * strongest are the same on any run. */
+static int cmp_strength(const void *x, const void *y)
+{
+    const strong *a = x, *b = y;
+    if (a->w != b->w)
+        return a->w < b->w ? 1 : -1;
+    return (a->l1 > b->l1) - (a->l1 < b->l1);   /* l1: storage index here */
+}
+
+static int cmp_index(const void *x, const void *y)
+{
+    const strong *a = x, *b = y;
+    return (a->l1 > b->l1) - (a->l1 < b->l1);
+}
+
+/* Target j's strong triples into out, in storage order; with more than
+ * kcap, its kcap strongest (scr: room for nstrong[j]).  How many. */
+static int32_t list_target(const refine_ctx *c, int j, strong *out, strong *scr)
+{
+    const phasor_graph *g = c->g;
+    strong q;
+    double w;
+    int32_t m = 0;
+    if (c->nstrong[j] <= c->kcap) {
+        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
+            if (strong_at(c, j, t, c->wmax[j], &q, &w))
+                out[m++] = q;
+        return m;
+    }
+    for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
+        if (strong_at(c, j, t, c->wmax[j], &q, &w)) {
+            scr[m] = q;
+            scr[m++].l1 = (int32_t)(t - g->tstart[j]);   /* its index, for the order */
+        }
+    qsort(scr, (size_t)m, sizeof *scr, cmp_strength);
+    qsort(scr, (size_t)c->kcap, sizeof *scr, cmp_index);
+    for (int32_t i = 0; i < c->kcap; i++)
+        strong_at(c, j, g->tstart[j] + scr[i].l1, 0, &out[i], &w);
+    return c->kcap;
+}
+
+/* tpool job: chunk k's list, allocated to its exact size. */
 static void list_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     int n = c->g->nfreq;
-    for (int k = tid; k < REFINE_CHUNKS; k += nthr)
-        c->part[k] = strong_block(c->g, c->known, (int)((int64_t)n * k / REFINE_CHUNKS),
-                                  (int)((int64_t)n * (k + 1) / REFINE_CHUNKS), &c->npart[k]);
+    for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
+        int j0 = chunk_start(n, k), j1 = chunk_start(n, k + 1);
+        int64_t len = 0, most = 0;
+        for (int j = j0; j < j1; j++) {
+            len += c->nstrong[j] < c->kcap ? c->nstrong[j] : c->kcap;
+            most = c->nstrong[j] > c->kcap && c->nstrong[j] > most ? c->nstrong[j] : most;
+        }
+        c->part[k] = malloc(sizeof(strong) * (size_t)(len ? len : 1));
+        strong *scr = most ? malloc(sizeof(strong) * (size_t)most) : NULL;
+        c->npart[k] = c->part[k] && (scr || !most) ? 0 : -1;
+        for (int j = j0; j < j1 && c->npart[k] >= 0; j++)
+            c->npart[k] += list_target(c, j, c->part[k] + c->npart[k], scr);
+        free(scr);
+    }
 }
 
-/* Every block's list; 0 when some block's could not be allocated. */
-static int strong_triples(refine_ctx *c)
+/* The most triples a target may list so that all of them take at most
+ * bytes (0: no bound): every target keeps its strong triples up to a
+ * common cap, the largest that fits. */
+static int32_t strong_cap(const refine_ctx *c, size_t bytes)
 {
+    int n = c->g->nfreq;
+    int32_t hi = 0;
+    int64_t total = 0;
+    for (int j = 0; j < n; j++)
+        total += c->nstrong[j], hi = c->nstrong[j] > hi ? c->nstrong[j] : hi;
+    int64_t room = (int64_t)(bytes / sizeof(strong));
+    if (bytes == 0 || total <= room)
+        return hi;
+    int32_t lo = 0;   /* fits; hi: does not */
+    while (hi - lo > 1) {
+        int32_t mid = lo + (hi - lo) / 2;
+        int64_t sum = 0;
+        for (int j = 0; j < n; j++)
+            sum += c->nstrong[j] < mid ? c->nstrong[j] : mid;
+        if (sum <= room)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* Every block's list within list_bytes (0: no bound), the selection's
+ * scratch included (each thread one target's strong triples); 0 when some
+ * block's could not be allocated, or none fits. */
+static int strong_triples(refine_ctx *c, size_t list_bytes)
+{
+    tpool_run_or_inline(c->g->pool, count_job, c);
+    int32_t most = 0;
+    for (int j = 0; j < c->g->nfreq; j++)
+        most = c->nstrong[j] > most ? c->nstrong[j] : most;
+    int nthr = c->g->pool ? tpool_size(c->g->pool) : 1;
+    c->scratch = (size_t)nthr * (size_t)most * sizeof(strong);
+    if (list_bytes > 0 && list_bytes <= c->scratch)
+        return 0;
+    if ((c->kcap = strong_cap(c, list_bytes ? list_bytes - c->scratch : 0)) < 1)
+        return 0;
+    if (c->kcap == most)
+        c->scratch = 0;   /* no target is cut: no selection */
     tpool_run_or_inline(c->g->pool, list_job, c);
     for (int k = 0; k < REFINE_CHUNKS; k++)
         if (c->npart[k] < 0)
@@ -183,6 +286,13 @@ static double misfit(refine_ctx *c)
     return m;
 }
 
+/* Bytes the refinement needs besides the strong triples' lists. */
+static size_t fixed_bytes(int n)
+{
+    return (size_t)n * (4 * sizeof(double) + 2 * REFINE_CHUNKS * sizeof(double) +
+                        sizeof(double) + sizeof(int32_t));
+}
+
 void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
                    const unsigned char *known)
 {
@@ -190,11 +300,26 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
     phasor_graph gr = *g;
     gr.weight = g->refine_weight;
     refine_ctx c = {.g = &gr, .known = known, .E = E};
-    int listed = strong_triples(&c);
+    size_t fixed = fixed_bytes(n);
+    if (g->refine_used)
+        *g->refine_used = 0;
+    if (g->refine_bytes > 0 && g->refine_bytes <= fixed)
+        return;   /* no room for a single list */
     double *keep = malloc(sizeof *keep * 4 * (size_t)n);
     c.zc = malloc(sizeof *c.zc * 2 * (size_t)n * REFINE_CHUNKS);
-    if (!listed || !keep || !c.zc)
+    c.wmax = malloc(sizeof *c.wmax * (size_t)n);
+    c.nstrong = malloc(sizeof *c.nstrong * (size_t)n);
+    if (!keep || !c.zc || !c.wmax || !c.nstrong ||
+        !strong_triples(&c, g->refine_bytes ? g->refine_bytes - fixed : 0))
         goto free_all;
+    free(c.wmax), c.wmax = NULL;
+    free(c.nstrong), c.nstrong = NULL;
+    if (g->refine_used) {
+        size_t listed = 0;
+        for (int k = 0; k < REFINE_CHUNKS; k++)
+            listed += (size_t)c.npart[k];
+        *g->refine_used = fixed + listed * sizeof(strong) + c.scratch;
+    }
     double cost = misfit(&c);
     for (int it = 0; it < iters; it++) {
         memcpy(keep, E, sizeof *keep * 4 * (size_t)n);
@@ -225,4 +350,6 @@ free_all:
         free(c.part[k]);
     free(keep);
     free(c.zc);
+    free(c.wmax);
+    free(c.nstrong);
 }

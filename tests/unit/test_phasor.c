@@ -96,4 +96,87 @@ TEST(recursion_same_bits_any_threads)
     free(kn);
 }
 
-TC_MAIN(TC_CASE(recursion_same_bits_any_threads))
+/* One frame of three point sources (no turbulence): its bispectrum's
+ * phases are the object's, up to the tilt (phi(1,0) = phi(0,1) = 0). */
+static const struct { int x, y; double a; } PTS[3] = {{20, 30, 1.0}, {40, 25, 0.6}, {33, 44, 0.3}};
+
+static double complex pts_ft(int n, int p, int q)
+{
+    double complex s = 0;
+    for (int k = 0; k < 3; k++)
+        s += PTS[k].a * cexp(-2 * M_PI * I * ((double)p * PTS[k].x + (double)q * PTS[k].y) / n);
+    return s;
+}
+
+/* Phases of the points' frame with refine_iters 5 within budget bytes
+ * (0: none); *used the refinement's bytes. */
+static int pts_phases(int n, size_t budget, int iters, double *ph, unsigned char *kn,
+                      size_t *used, size_t *mem)
+{
+    float *fr = calloc((size_t)n * n, sizeof *fr);
+    for (int k = 0; k < 3; k++)
+        fr[PTS[k].y * n + PTS[k].x] = (float)PTS[k].a;
+    bispec_opts o;
+    bispec_opts_defaults(&o);
+    o.r2_px = 8, o.rcut_px = n / 2 - 2, o.measure = 0, o.refine_iters = iters;
+    o.nthreads = 2, o.budget_bytes = budget;
+    bispec *b = bispec_new(n, n, &o, NULL);
+    int rc = b ? bispec_add(b, fr) : SL_ENOMEM;
+    if (rc == SL_OK)
+        rc = bispec_phase(b, ph, kn);
+    *used = bispec_refine_bytes(b), *mem = b ? bispec_memory_bytes(b) : 0;
+    bispec_free(b);
+    free(fr);
+    return rc;
+}
+
+/* Worst phase error against the points where |O| > 1e-3 O(0). */
+static double pts_error(int n, const double *ph, const unsigned char *kn, int *used)
+{
+    double a = carg(pts_ft(n, 1, 0)), c = carg(pts_ft(n, 0, 1)), worst = 0;
+    *used = 0;
+    for (int q = -(n / 2 - 3); q <= n / 2 - 3; q++)
+        for (int p = -(n / 2 - 3); p <= n / 2 - 3; p++) {
+            double complex O = pts_ft(n, p, q);
+            size_t k = fidx(p, q, n);
+            if (hypot(p, q) > n / 2 - 3 || cabs(O) < 1e-3 * 1.9 || !kn[k])
+                continue;
+            double e = fabs(remainder(ph[k] - (carg(O) - a * p - c * q), 2 * M_PI));
+            worst = e > worst ? e : worst, (*used)++;
+        }
+    return worst;
+}
+
+/* The refinement within the handle's budget (phasor_refine.c): a bound it
+ * does not reach changes no bit; a binding one is kept, the refinement
+ * still runs and the phases stay the object's; one below the fixed part
+ * skips the refinement (the recursion's phases, bit for bit). */
+TEST(refine_within_budget)
+{
+    int n = 64;
+    size_t npx = (size_t)n * n, used[5], mem;
+    double *ph = calloc(5 * npx, sizeof *ph);
+    unsigned char *kn = calloc(5 * npx, 1);
+    CHECK(pts_phases(n, 0, 5, ph, kn, &used[0], &mem) == SL_OK, "unbounded");
+    CHECK(used[0] > 0, "the refinement did not run");
+    CHECK(pts_phases(n, 1u << 30, 5, ph + npx, kn + npx, &used[1], &mem) == SL_OK, "1 GB");
+    CHECK(used[1] == used[0] && !memcmp(ph, ph + npx, npx * sizeof *ph),
+          "a bound not reached changed the phases (%zu vs %zu bytes)", used[1], used[0]);
+    /* refine_bytes = budget - mem when that is at least a quarter */
+    size_t want = used[0] * 3 / 4, budget = want >= mem / 3 ? mem + want : 4 * want;
+    CHECK(pts_phases(n, budget, 5, ph + 2 * npx, kn + 2 * npx, &used[2], &mem) == SL_OK, "3/4");
+    CHECK(used[2] > 0 && used[2] <= want, "bound %zu bytes: the refinement took %zu", want,
+          used[2]);
+    int cmp[2];
+    double e0 = pts_error(n, ph, kn, &cmp[0]), e2 = pts_error(n, ph + 2 * npx, kn + 2 * npx, &cmp[1]);
+    CHECK(cmp[0] > 500 && cmp[1] == cmp[0], "%d / %d frequencies compared", cmp[0], cmp[1]);
+    CHECK(e0 < 1e-3 && e2 < 1e-3, "worst phase error %g rad unbounded, %g bounded", e0, e2);
+    CHECK(pts_phases(n, 4096, 5, ph + 3 * npx, kn + 3 * npx, &used[3], &mem) == SL_OK, "4 kB");
+    CHECK(pts_phases(n, 0, 0, ph + 4 * npx, kn + 4 * npx, &used[4], &mem) == SL_OK, "no refine");
+    CHECK(used[3] == 0 && !memcmp(ph + 3 * npx, ph + 4 * npx, npx * sizeof *ph),
+          "4 kB: the refinement took %zu bytes", used[3]);
+    free(ph);
+    free(kn);
+}
+
+TC_MAIN(TC_CASE(recursion_same_bits_any_threads), TC_CASE(refine_within_budget))

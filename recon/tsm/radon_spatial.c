@@ -21,57 +21,13 @@
  */
 #include "radon_spatial.h"
 
-#include <fftw3.h>
+#include "radon_spatial_int.h"
+
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-
-#if defined(__SSE2__) && defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>   /* SSE2 always; AVX2 in one function, if the CPU has it */
-#define SP_SSE2 1
-#else
-#define SP_SSE2 0
-#endif
-
-enum { SP_MAX_THREADS = 16 };
-
-typedef struct sp_line {
-    int64_t x, y;             /* first point + 2 (border), 32.32 fixed */
-    int32_t i0, n, o;         /* first inner index, points, outer index
-                               * (indices offset by nd/2) */
-} sp_line;
-
-typedef struct sp_pass {
-    int64_t ex, ey;           /* inner step e1, 32.32 fixed */
-    int krow, kcol;           /* projections fed (-1: none) */
-    int l0, l1;               /* its lines */
-} sp_pass;
-
-struct radon_spatial {
-    int w, h, nang, ns;
-    const double *cs, *sn;
-    const int *xlo, *xhi;
-    /* projector (NULL rp: not built) */
-    int nd, npass, nline;     /* lattice indices -nd/2..nd/2 */
-    int nthr, simd;           /* threads; 0 portable, 1 SSE2, 2 AVX2 */
-    float *rp;                /* row pairs of the frame in a 2-pixel zero
-                               * border, pw = w + 4 by h + 4 pixels:
-                               * rp[2 (Y pw + X) + b] = pixel (X, Y + b) */
-    sp_pass *pass;
-    sp_line *line;
-    float *cols;              /* nthr x (nd + 9): column sums of a pass,
-                               * 8 floats of slack */
-    int *bin;                 /* nd + 1: lattice index -> projection bin */
-    /* FBP */
-    radon_interp interp;
-    int nl, up;               /* filter length 2 ns, upsampling */
-    float *l_in, *u_out, *qext, *ramp;
-    float *l_spec, *u_spec;   /* interleaved complex */
-    fftwf_plan l_r2c, u_c2r;
-};
 
 double radon_window_gain(radon_window win, double f, double fc)
 {
@@ -102,7 +58,7 @@ void radon_spatial_free(radon_spatial *sp)
     void *fb[] = {sp->l_in, sp->u_out, sp->l_spec, sp->u_spec};
     for (size_t i = 0; i < sizeof fb / sizeof fb[0]; i++)
         fftwf_free(fb[i]);
-    void *mb[] = {sp->rp, sp->pass, sp->line, sp->cols, sp->bin, sp->qext, sp->ramp};
+    void *mb[] = {sp->rp, sp->pass, sp->line, sp->cols, sp->bin, sp->qall, sp->ramp};
     for (size_t i = 0; i < sizeof mb / sizeof mb[0]; i++)
         free(mb[i]);
     free(sp);
@@ -441,100 +397,6 @@ void radon_spatial_project(radon_spatial *sp, const float *img, float *proj)
         pthread_join(th[t], NULL);
 }
 
-/* ---- filtered back projection -------------------------------------------- */
-
-/* Keys (a = -0.5) interpolation of q at t, 32.32 fixed point. */
-static inline float keys(const float *q, int64_t t)
-{
-    const float *p = q + (int32_t)(uint32_t)((uint64_t)t >> 32);
-    float f = (float)(int32_t)((uint32_t)t >> 8) * 0x1p-24f, f2 = f * f, f3 = f2 * f;
-    return p[-1] * (-0.5f * f3 + f2 - 0.5f * f) + p[0] * (1.5f * f3 - 2.5f * f2 + 1.0f) +
-           p[1] * (-1.5f * f3 + 2.0f * f2 + 0.5f * f) + p[2] * (0.5f * f3 - 0.5f * f2);
-}
-
-/* row[x] += keys(q, t + x dt), x = 0..n-1: four at a time with SSE2 (the
- * four taps of a lane are one unaligned load; then a 4x4 transpose), the
- * same arithmetic as keys(), so the same bits. */
-static void row_keys(float *row, const float *q, int64_t t, int64_t dt, int n)
-{
-    int x = 0;
-#if SP_SSE2
-    __m128i ta = _mm_set_epi64x(t + dt, t), tb = _mm_set_epi64x(t + 3 * dt, t + 2 * dt);
-    const __m128i d4 = _mm_set1_epi64x(4 * dt);
-    const __m128 scale = _mm_set1_ps(0x1p-24f);
-    for (; x + 4 <= n; x += 4) {
-        __m128 ta_ = _mm_castsi128_ps(ta), tb_ = _mm_castsi128_ps(tb);
-        __m128i it = _mm_castps_si128(_mm_shuffle_ps(ta_, tb_, _MM_SHUFFLE(3, 1, 3, 1)));
-        __m128i fi = _mm_castps_si128(_mm_shuffle_ps(ta_, tb_, _MM_SHUFFLE(2, 0, 2, 0)));
-        __m128 f = _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(fi, 8)), scale);
-        __m128 f2 = _mm_mul_ps(f, f), f3 = _mm_mul_ps(f2, f);
-        uint64_t i01 = (uint64_t)_mm_cvtsi128_si64(it);
-        uint64_t i23 = (uint64_t)_mm_cvtsi128_si64(_mm_unpackhi_epi64(it, it));
-        __m128 pm = _mm_loadu_ps(q + (int32_t)(uint32_t)i01 - 1);
-        __m128 p0 = _mm_loadu_ps(q + (int32_t)(uint32_t)(i01 >> 32) - 1);
-        __m128 p1 = _mm_loadu_ps(q + (int32_t)(uint32_t)i23 - 1);
-        __m128 p2 = _mm_loadu_ps(q + (int32_t)(uint32_t)(i23 >> 32) - 1);
-        _MM_TRANSPOSE4_PS(pm, p0, p1, p2);
-#define MUL(a, b) _mm_mul_ps(_mm_set1_ps(a), b)
-        __m128 wm = _mm_sub_ps(_mm_add_ps(MUL(-0.5f, f3), f2), MUL(0.5f, f));
-        __m128 w0 = _mm_add_ps(_mm_sub_ps(MUL(1.5f, f3), MUL(2.5f, f2)), _mm_set1_ps(1.0f));
-        __m128 w1 = _mm_add_ps(_mm_add_ps(MUL(-1.5f, f3), MUL(2.0f, f2)), MUL(0.5f, f));
-        __m128 w2 = _mm_sub_ps(MUL(0.5f, f3), MUL(0.5f, f2));
-#undef MUL
-        __m128 v = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(pm, wm), _mm_mul_ps(p0, w0)),
-                                         _mm_mul_ps(p1, w1)), _mm_mul_ps(p2, w2));
-        _mm_storeu_ps(row + x, _mm_add_ps(_mm_loadu_ps(row + x), v));
-        ta = _mm_add_epi64(ta, d4), tb = _mm_add_epi64(tb, d4);
-    }
-#endif
-    for (; x < n; x++)
-        row[x] += keys(q, t + x * dt);
-}
-
-void radon_spatial_fbp(radon_spatial *sp, const float *proj, float *img)
-{
-    int ns = sp->ns, nl = sp->nl, up = sp->up, L = nl * up, w = sp->w;
-    memset(img, 0, (size_t)w * sp->h * sizeof *img);
-    for (int k = 0; k < sp->nang; k++) {
-        memcpy(sp->l_in, proj + (size_t)k * ns, ns * sizeof(float));
-        memset(sp->l_in + ns, 0, (nl - ns) * sizeof(float));
-        fftwf_execute(sp->l_r2c);
-        memset(sp->u_spec, 0, (L / 2 + 1) * 2 * sizeof(float));
-        for (int j = 0; j <= nl / 2; j++) {
-            float g = sp->ramp[j] * (up > 1 && j == nl / 2 ? 0.5f : 1.0f);
-            sp->u_spec[2 * (j)] = g * sp->l_spec[2 * (j)];
-            sp->u_spec[2 * (j) + 1] = g * sp->l_spec[2 * (j) + 1];
-        }
-        fftwf_execute(sp->u_c2r);
-        /* Periodic guard of 2 samples each side: q(s) at s < -ns/2 lives
-         * at the end of the circular buffer. */
-        float *q = sp->qext + 2;
-        memcpy(q, sp->u_out, L * sizeof(float));
-        q[-2] = sp->u_out[L - 2], q[-1] = sp->u_out[L - 1];
-        q[L] = sp->u_out[0], q[L + 1] = sp->u_out[1], q[L + 2] = sp->u_out[2];
-        double c = sp->cs[k] * up, s = sp->sn[k] * up, off = 0.5 * ns * up;
-        int64_t dt = llround(ldexp(c, 32));
-        for (int y = 0; y < sp->h; y++) {
-            float *row = img + (size_t)y * w;
-            double base = (y - sp->h / 2) * s + off - (w / 2) * c;
-            if (sp->interp == RADON_INTERP_CUBIC) {
-                /* t in 32.32 fixed point, within 3e-8 of base + x c */
-                int x0 = sp->xlo[y];
-                if (x0 <= sp->xhi[y])
-                    row_keys(row + x0, q, llround(ldexp(base + x0 * c, 32)), dt,
-                             sp->xhi[y] - x0 + 1);
-            } else {
-                for (int x = sp->xlo[y]; x <= sp->xhi[y]; x++) {
-                    double t = base + x * c;
-                    int i = (int)floor(t);
-                    float f = (float)(t - i);
-                    row[x] += q[i] + f * (q[i + 1] - q[i]);
-                }
-            }
-        }
-    }
-}
-
 radon_spatial *radon_spatial_new(int w, int h, int nangles, int ns, const radon_opts *o,
                                  const double *cs, const double *sn,
                                  const int *xlo, const int *xhi, sl_err *err)
@@ -552,12 +414,12 @@ radon_spatial *radon_spatial_new(int w, int h, int nangles, int ns, const radon_
     sp->nl = 2 * ns;
     int nl = sp->nl, up = sp->up, L = nl * up;
     sp->ramp = malloc((nl / 2 + 1) * sizeof *sp->ramp);
-    sp->qext = malloc((L + 8) * sizeof *sp->qext);
+    sp->qall = malloc((size_t)nangles * (L + 8) * sizeof *sp->qall);
     sp->l_in = fftwf_malloc(nl * sizeof(float));
     sp->l_spec = fftwf_malloc((nl / 2 + 1) * 2 * sizeof(float));
     sp->u_spec = fftwf_malloc((L / 2 + 1) * 2 * sizeof(float));
     sp->u_out = fftwf_malloc(L * sizeof(float));
-    if (!sp->ramp || !sp->qext || !sp->l_in || !sp->l_spec || !sp->u_spec || !sp->u_out ||
+    if (!sp->ramp || !sp->qall || !sp->l_in || !sp->l_spec || !sp->u_spec || !sp->u_out ||
         (o->spatial && build_projector(sp) != SL_OK)) {
         sl_seterr(err, SL_ENOMEM, "radon_new: out of memory (%dx%d, %d angles)", w, h,
                   nangles);

@@ -14,6 +14,7 @@
 #include "bispec_int.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -83,13 +84,26 @@ static void window_slot(bispec *b, int k)
     b->sw3[k] = w3;
 }
 
-/* tpool job: thread tid windows and transforms the staged frames' slots
- * tid, tid + n, ... (fftwf_execute_dft_r2c on the handle's plans: every
- * slot has the planned arrays' alignment). */
+/* The staged frames' transforms and spread are claimed by whichever
+ * thread is free, a slot or SPREAD_CLAIM frequencies at a time: each is
+ * computed whole by one thread, so the bits do not depend on who runs
+ * it, and fixed shares left a thread idle whenever the read-ahead thread
+ * (three threads on two cores) or the host slowed the other. */
+enum { SPREAD_CLAIM = 256 };
+typedef struct stage_job {
+    bispec *b;
+    atomic_int next;
+} stage_job;
+
+/* tpool job: window and transform the staged frames' slots claimed
+ * (fftwf_execute_dft_r2c on the handle's plans: every slot has the
+ * planned arrays' alignment). */
 static void fft_job(void *ctx, int tid, int n)
 {
-    bispec *b = ctx;
-    for (int k = tid; k < b->nb - b->nspread; k += n) {
+    stage_job *j = ctx;
+    bispec *b = j->b;
+    (void)tid, (void)n;
+    for (int k; (k = atomic_fetch_add(&j->next, 1)) < b->nb - b->nspread;) {
         window_slot(b, k);
         fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
         if (b->plan2)
@@ -132,16 +146,20 @@ static void spread_freq(bispec *b, int j)
     }
 }
 
-/* tpool job: thread tid spreads its share of the frequencies, taken in
- * the spectra's memory order (sorder): in rank order each frequency read
- * the staged spectra at scattered places, a cache miss per frame and
- * frequency once they outgrow L2 (8 MB of spectra at 512^2). */
+/* tpool job: spread the frequencies claimed, taken in the spectra's
+ * memory order (sorder): in rank order each frequency read the staged
+ * spectra at scattered places, a cache miss per frame and frequency once
+ * they outgrow L2 (8 MB of spectra at 512^2). */
 static void spread_job(void *ctx, int tid, int n)
 {
-    bispec *b = ctx;
-    int i1 = (int)((int64_t)b->nf * (tid + 1) / n);
-    for (int i = (int)((int64_t)b->nf * tid / n); i < i1; i++)
-        spread_freq(b, b->sorder[i]);
+    stage_job *j = ctx;
+    bispec *b = j->b;
+    (void)tid, (void)n;
+    for (int i0; (i0 = atomic_fetch_add(&j->next, SPREAD_CLAIM)) < b->nf;) {
+        int i1 = i0 + SPREAD_CLAIM < b->nf ? i0 + SPREAD_CLAIM : b->nf;
+        for (int i = i0; i < i1; i++)
+            spread_freq(b, b->sorder[i]);
+    }
 }
 
 /* Transform the staged frames and spread them over the legs, both on the
@@ -150,12 +168,13 @@ static void stage(bispec *b)
 {
     if (b->nb == b->nspread)
         return;
-    tpool_run(b->pool, fft_job, b);
+    stage_job ffts = {b, 0}, spread = {b, 0};
+    tpool_run(b->pool, fft_job, &ffts);
     for (int k = 0; k < b->nb - b->nspread; k++) { /* in frame order */
         b->w2sum += b->sw2[k];
         b->w3sum += b->sw3[k];
     }
-    tpool_run(b->pool, spread_job, b);
+    tpool_run(b->pool, spread_job, &spread);
     b->nspread = b->nb;
 }
 

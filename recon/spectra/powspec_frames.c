@@ -1,8 +1,10 @@
 /* powspec_frames.c - frames into a powspec (powspec.h): each frame is
  * copied into a slot; when the slots are full (or a result is asked for)
- * the handle's threads window and transform them, slot s on thread
- * s mod n, and then add them to the sums, each thread owning a band of rows of the
- * half plane and adding the slots in frame order.  So every sum takes the
+ * the handle's threads window and transform them, a slot at a time, and
+ * then add them to the sums, a band of SUM_ROWS rows of the half plane at
+ * a time, adding the slots in frame order; slots and bands are claimed by
+ * whichever thread is free (fixed shares left one idle whenever the
+ * read-ahead thread or the host slowed the other).  So every sum takes the
  * same operations in the same order as one frame at a time on one thread:
  * the same bits on any thread count.  The transforms were the power
  * spectrum pass's serial part (12 % of a one-thread direct run at
@@ -12,8 +14,15 @@
 #include "powspec_int.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+
+enum { SUM_ROWS = 8 };
+typedef struct frames_job {
+    powspec *p;
+    atomic_int next;
+} frames_job;
 
 /* Slot s's alignment ramps: the frame's spectrum moved to its
  * first-harmonic centroid (the phase of F at (1, 0) and (0, 1) is the
@@ -47,12 +56,14 @@ static void window_slot(powspec *p, int s)
     p->sw2[s] = w2flux;
 }
 
-/* tpool job: thread tid windows and transforms slots tid, tid + n, ...
- * (new-array execute on the plan's alignment) and makes their ramps. */
+/* tpool job: window and transform the slots claimed (new-array execute
+ * on the plan's alignment) and make their ramps. */
 static void fft_job(void *ctx, int tid, int n)
 {
-    powspec *p = ctx;
-    for (int s = tid; s < p->nstaged; s += n) {
+    frames_job *fj = ctx;
+    powspec *p = fj->p;
+    (void)tid, (void)n;
+    for (int s; (s = atomic_fetch_add(&fj->next, 1)) < p->nstaged;) {
         window_slot(p, s);
         fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad,
                               p->out + (size_t)s * p->nhp);
@@ -61,35 +72,44 @@ static void fft_job(void *ctx, int tid, int n)
     }
 }
 
-/* tpool job: thread tid adds every staged slot, in order, to its band of
- * rows: |F|^2, F and (opts.aligned) F moved by the slot's ramps; about
- * 2 w h flops a frame for the alignment. */
+/* Row j of the half plane: every staged slot, in order, added to |F|^2,
+ * F and (opts.aligned) F moved by the slot's ramps; about 2 w flops a
+ * frame for the alignment. */
+static void sum_row(powspec *p, int j)
+{
+    for (int s = 0; s < p->nstaged; s++) {
+        const fftwf_complex *out = p->out + (size_t)s * p->nhp;
+        const double complex *ex = p->ex ? p->ex + (size_t)s * p->wc : NULL;
+        const double complex *ey = p->ey ? p->ey + (size_t)s * p->h : NULL;
+        for (int i = 0; i < p->wc; i++) {
+            size_t k = (size_t)j * p->wc + i;
+            double re = crealf(out[k]), im = cimagf(out[k]);
+            p->ps[k] += re * re + im * im;
+            p->ft[k] += re + I * im;
+            if (p->aft)
+                p->aft[k] += out[k] * ex[i] * ey[j];
+        }
+    }
+}
+
+/* tpool job: the bands of rows claimed, SUM_ROWS at a time. */
 static void sum_job(void *ctx, int tid, int n)
 {
-    powspec *p = ctx;
-    int j0 = (int)((int64_t)p->h * tid / n), j1 = (int)((int64_t)p->h * (tid + 1) / n);
-    for (int j = j0; j < j1; j++)
-        for (int s = 0; s < p->nstaged; s++) {
-            const fftwf_complex *out = p->out + (size_t)s * p->nhp;
-            const double complex *ex = p->ex ? p->ex + (size_t)s * p->wc : NULL;
-            const double complex *ey = p->ey ? p->ey + (size_t)s * p->h : NULL;
-            for (int i = 0; i < p->wc; i++) {
-                size_t k = (size_t)j * p->wc + i;
-                double re = crealf(out[k]), im = cimagf(out[k]);
-                p->ps[k] += re * re + im * im;
-                p->ft[k] += re + I * im;
-                if (p->aft)
-                    p->aft[k] += out[k] * ex[i] * ey[j];
-            }
-        }
+    frames_job *fj = ctx;
+    powspec *p = fj->p;
+    (void)tid, (void)n;
+    for (int j0; (j0 = atomic_fetch_add(&fj->next, SUM_ROWS)) < p->h;)
+        for (int j = j0; j < j0 + SUM_ROWS && j < p->h; j++)
+            sum_row(p, j);
 }
 
 void powspec_flush(powspec *p)
 {
     if (!p->nstaged)
         return;
-    tpool_run(p->pool, fft_job, p);
-    tpool_run(p->pool, sum_job, p);
+    frames_job ffts = {p, 0}, sums = {p, 0};
+    tpool_run(p->pool, fft_job, &ffts);
+    tpool_run(p->pool, sum_job, &sums);
     for (int s = 0; s < p->nstaged; s++) {
         p->flux += p->sflux[s];
         p->w2flux += p->sw2[s];

@@ -242,7 +242,7 @@ void bispec_free(bispec *b)
     for (int i = 0; i < b->nmap; i++)
         munmap(b->map[i], b->maplen[i]);
     void *bufs[] = {b->fp,   b->fq,    b->ubase, b->seed,  b->lut,  b->doff,
-                    b->dleg, b->tstart, b->tk,   b->trange, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
+                    b->dleg, b->tstart, b->tk,   b->kunit, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
                     b->known, b->work, b->win,   b->in,    b->out,  b->in2,
                     b->out2, b->cin,   b->cout, b->w2ft};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)

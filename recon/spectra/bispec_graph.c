@@ -326,20 +326,20 @@ static int spectrum_order(bispec *b)
     return SL_OK;
 }
 
-/* Split order[] into nthr ranges of about equal triple counts, at tile
- * starts. */
-static void split_ranges(bispec *b)
+/* Split order[] into BISPEC_KUNITS units of about equal triple counts,
+ * at tile starts (a unit may be empty). */
+static void split_units(bispec *b)
 {
     int o = 0;
     int64_t done = 0;
-    b->trange[0] = 0;
-    for (int r = 1; r < b->nthr; r++) {
-        int64_t goal = b->nt * r / b->nthr;
+    b->kunit[0] = 0;
+    for (int r = 1; r < BISPEC_KUNITS; r++) {
+        int64_t goal = b->nt * r / BISPEC_KUNITS;
         for (; o < b->nf && (done < goal || !b->tbeg[o]); o++)
             done += b->tstart[b->order[o] + 1] - b->tstart[b->order[o]];
-        b->trange[r] = o;
+        b->kunit[r] = o;
     }
-    b->trange[b->nthr] = b->nf;
+    b->kunit[BISPEC_KUNITS] = b->nf;
 }
 
 int bispec_build_graph(bispec *b, sl_err *err)
@@ -361,12 +361,12 @@ int bispec_build_graph(bispec *b, sl_err *err)
     free(reach);
     if (rc != SL_OK)
         return rc;
-    b->trange = bispec_alloc(b, ((size_t)b->nthr + 1) * sizeof *b->trange);
-    b->order = b->trange ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
+    b->kunit = bispec_alloc(b, ((size_t)BISPEC_KUNITS + 1) * sizeof *b->kunit);
+    b->order = b->kunit ? bispec_alloc(b, (size_t)b->nf * sizeof *b->order) : NULL;
     b->tbeg = b->order ? bispec_alloc(b, (size_t)b->nf) : NULL;
     b->sorder = b->tbeg ? bispec_alloc(b, (size_t)b->nf * sizeof *b->sorder) : NULL;
     if (!b->sorder || tile_order(b) != SL_OK || spectrum_order(b) != SL_OK)
         return SL_ENOMEM;
-    split_ranges(b);
+    split_units(b);
     return SL_OK;
 }

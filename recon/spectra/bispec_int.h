@@ -18,6 +18,9 @@
 #define BISPEC_SLOTS 8
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
 #define BISPEC_TILE 4
+/* The kernel's work units, claimed by whichever thread is free: a fixed
+ * number, so their cut does not depend on the thread count. */
+#define BISPEC_KUNITS 128
 typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));
 
 struct bispec {
@@ -43,7 +46,9 @@ struct bispec {
     int64_t nt;
     int nthr;
     tpool *pool;             /* nthr threads: graph, kernel, phases */
-    int32_t *trange;         /* ranges of order[] of equal triple counts */
+    int32_t *kunit;          /* BISPEC_KUNITS + 1: the kernel's work units,
+                              * ranges of order[] of about equal triple
+                              * counts, cut at tile starts */
     double *accd, *acc2d;    /* 2 per triple; 1 per triple */
 #define BISPEC_NMAP 3
     void *map[BISPEC_NMAP];  /* mappings of acc, acc2 and fb (big_alloc) */

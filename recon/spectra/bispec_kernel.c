@@ -55,12 +55,21 @@ static void kernel(const bispec *b, int o0, int o1)
     }
 }
 
-/* tpool job: thread tid sums the triples of its range of targets. */
+/* tpool job: sum the triples of the work units claimed (bispec_int.h:
+ * a fixed cut, each unit summed whole by one thread).  Fixed halves left
+ * one thread waiting whenever the read-ahead thread or the host slowed
+ * the other. */
+typedef struct kernel_job {
+    const bispec *b;
+    atomic_int next;
+} kernel_job;
+
 static void kjob(void *ctx, int tid, int n)
 {
-    const bispec *b = ctx;
-    (void)n;
-    kernel(b, b->trange[tid], b->trange[tid + 1]);
+    kernel_job *j = ctx;
+    (void)tid, (void)n;
+    for (int u; (u = atomic_fetch_add(&j->next, 1)) < BISPEC_KUNITS;)
+        kernel(j->b, j->b->kunit[u], j->b->kunit[u + 1]);
 }
 
 /* Slot k's frame, as bispec_add copied it, windowed in place (and w^2
@@ -194,7 +203,8 @@ void bispec_flush(bispec *b)
                        (size_t)(used - b->nb) * sizeof(float));
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    tpool_run(b->pool, kjob, b);
+    kernel_job kj = {b, 0};
+    tpool_run(b->pool, kjob, &kj);
     b->nb = b->nspread = 0;
     clock_gettime(CLOCK_MONOTONIC, &t1);
     b->kernel_s += (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);

@@ -29,6 +29,7 @@
 #include "phasor_int.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,7 +76,17 @@ typedef struct refine_ctx {
     const double *E;
     double *zc;                  /* REFINE_CHUNKS planes of 2 nfreq */
     double cost[REFINE_CHUNKS];
+    atomic_int next;             /* the next chunk to claim (run() resets) */
 } refine_ctx;
+
+/* job on the pool, its chunks claimed by whichever thread is free (each
+ * chunk is computed whole by one thread: the same bits on any count; the
+ * chunks' triple counts grow with |u|, so round robin did not balance). */
+static void run(refine_ctx *c, tpool_fn job)
+{
+    atomic_store(&c->next, 0);
+    tpool_run_or_inline(c->g->pool, job, c);
+}
 
 static int chunk_start(int n, int k) { return (int)((int64_t)n * k / REFINE_CHUNKS); }
 
@@ -106,7 +117,8 @@ static void count_job(void *ctx, int tid, int nthr)
     const phasor_graph *g = c->g;
     strong q;
     double w;
-    for (int k = tid; k < REFINE_CHUNKS; k += nthr)
+    (void)tid, (void)nthr;
+    for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;)
         for (int j = chunk_start(g->nfreq, k); j < chunk_start(g->nfreq, k + 1); j++) {
             double wmax = 0;
             int32_t ns = 0;
@@ -168,7 +180,8 @@ static void list_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     int n = c->g->nfreq;
-    for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
+    (void)tid, (void)nthr;
+    for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;) {
         int j0 = chunk_start(n, k), j1 = chunk_start(n, k + 1);
         int64_t len = 0, most = 0;
         for (int j = j0; j < j1; j++) {
@@ -216,7 +229,7 @@ static int32_t strong_cap(const refine_ctx *c, size_t bytes)
  * block's could not be allocated, or none fits. */
 static int strong_triples(refine_ctx *c, size_t list_bytes)
 {
-    tpool_run_or_inline(c->g->pool, count_job, c);
+    run(c, count_job);
     int32_t most = 0;
     for (int j = 0; j < c->g->nfreq; j++)
         most = c->nstrong[j] > most ? c->nstrong[j] : most;
@@ -228,7 +241,7 @@ static int strong_triples(refine_ctx *c, size_t list_bytes)
         return 0;
     if (c->kcap == most)
         c->scratch = 0;   /* no target is cut: no selection */
-    tpool_run_or_inline(c->g->pool, list_job, c);
+    run(c, list_job);
     for (int k = 0; k < REFINE_CHUNKS; k++)
         if (c->npart[k] < 0)
             return 0;
@@ -240,7 +253,8 @@ static void scatter_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     int n = c->g->nfreq;
-    for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
+    (void)tid, (void)nthr;
+    for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;) {
         double *Z = c->zc + (size_t)k * 2 * n;
         memset(Z, 0, sizeof *Z * 2 * (size_t)n);
         for (int64_t t = 0; t < c->npart[k]; t++) {
@@ -265,7 +279,8 @@ static void scatter_job(void *ctx, int tid, int nthr)
 static void misfit_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
-    for (int k = tid; k < REFINE_CHUNKS; k += nthr) {
+    (void)tid, (void)nthr;
+    for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;) {
         double m = 0;
         for (int64_t t = 0; t < c->npart[k]; t++) {
             const strong *q = &c->part[k][t];
@@ -279,7 +294,7 @@ static void misfit_job(void *ctx, int tid, int nthr)
 
 static double misfit(refine_ctx *c)
 {
-    tpool_run_or_inline(c->g->pool, misfit_job, c);
+    run(c, misfit_job);
     double m = 0;
     for (int k = 0; k < REFINE_CHUNKS; k++)
         m += c->cost[k];
@@ -323,7 +338,7 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
     double cost = misfit(&c);
     for (int it = 0; it < iters; it++) {
         memcpy(keep, E, sizeof *keep * 4 * (size_t)n);
-        tpool_run_or_inline(g->pool, scatter_job, &c);
+        run(&c, scatter_job);
         for (size_t i = 0; i < 2 * (size_t)n; i++) {
             double z = 0;
             for (int k = 0; k < REFINE_CHUNKS; k++)

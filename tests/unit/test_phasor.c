@@ -108,10 +108,10 @@ static double complex pts_ft(int n, int p, int q)
     return s;
 }
 
-/* Phases of the points' frame with refine_iters 5 within budget bytes
- * (0: none); *used the refinement's bytes. */
-static int pts_phases(int n, size_t budget, int iters, double *ph, unsigned char *kn,
-                      size_t *used, size_t *mem)
+/* Phases of the points' frame with iters refinement passes within budget
+ * bytes (0: none) on nthreads; *used the refinement's bytes. */
+static int pts_phases(int n, size_t budget, int iters, int nthreads, double *ph,
+                      unsigned char *kn, size_t *used, size_t *mem)
 {
     float *fr = calloc((size_t)n * n, sizeof *fr);
     for (int k = 0; k < 3; k++)
@@ -119,7 +119,7 @@ static int pts_phases(int n, size_t budget, int iters, double *ph, unsigned char
     bispec_opts o;
     bispec_opts_defaults(&o);
     o.r2_px = 8, o.rcut_px = n / 2 - 2, o.measure = 0, o.refine_iters = iters;
-    o.nthreads = 2, o.budget_bytes = budget;
+    o.nthreads = nthreads, o.budget_bytes = budget;
     bispec *b = bispec_new(n, n, &o, NULL);
     int rc = b ? bispec_add(b, fr) : SL_ENOMEM;
     if (rc == SL_OK)
@@ -148,7 +148,7 @@ static double pts_error(int n, const double *ph, const unsigned char *kn, int *u
 }
 
 /* The refinement within the handle's budget (phasor_refine.c): a bound it
- * does not reach changes no bit; a binding one is kept, the refinement
+ * does not reach changes no bit (on 1 thread against 2); a binding one is kept, the refinement
  * still runs and the phases stay the object's; one below the fixed part
  * skips the refinement (the recursion's phases, bit for bit). */
 TEST(refine_within_budget)
@@ -157,22 +157,23 @@ TEST(refine_within_budget)
     size_t npx = (size_t)n * n, used[5], mem;
     double *ph = calloc(5 * npx, sizeof *ph);
     unsigned char *kn = calloc(5 * npx, 1);
-    CHECK(pts_phases(n, 0, 5, ph, kn, &used[0], &mem) == SL_OK, "unbounded");
+    CHECK(pts_phases(n, 0, 5, 2, ph, kn, &used[0], &mem) == SL_OK, "unbounded");
     CHECK(used[0] > 0, "the refinement did not run");
-    CHECK(pts_phases(n, 1u << 30, 5, ph + npx, kn + npx, &used[1], &mem) == SL_OK, "1 GB");
+    CHECK(pts_phases(n, 1u << 30, 5, 1, ph + npx, kn + npx, &used[1], &mem) == SL_OK, "1 GB");
     CHECK(used[1] == used[0] && !memcmp(ph, ph + npx, npx * sizeof *ph),
-          "a bound not reached changed the phases (%zu vs %zu bytes)", used[1], used[0]);
+          "a bound not reached, on 1 thread, changed the phases (%zu vs %zu bytes)", used[1],
+          used[0]);
     /* refine_bytes = budget - mem when that is at least a quarter */
     size_t want = used[0] * 3 / 4, budget = want >= mem / 3 ? mem + want : 4 * want;
-    CHECK(pts_phases(n, budget, 5, ph + 2 * npx, kn + 2 * npx, &used[2], &mem) == SL_OK, "3/4");
+    CHECK(pts_phases(n, budget, 5, 2, ph + 2 * npx, kn + 2 * npx, &used[2], &mem) == SL_OK, "3/4");
     CHECK(used[2] > 0 && used[2] <= want, "bound %zu bytes: the refinement took %zu", want,
           used[2]);
     int cmp[2];
     double e0 = pts_error(n, ph, kn, &cmp[0]), e2 = pts_error(n, ph + 2 * npx, kn + 2 * npx, &cmp[1]);
     CHECK(cmp[0] > 500 && cmp[1] == cmp[0], "%d / %d frequencies compared", cmp[0], cmp[1]);
     CHECK(e0 < 1e-3 && e2 < 1e-3, "worst phase error %g rad unbounded, %g bounded", e0, e2);
-    CHECK(pts_phases(n, 4096, 5, ph + 3 * npx, kn + 3 * npx, &used[3], &mem) == SL_OK, "4 kB");
-    CHECK(pts_phases(n, 0, 0, ph + 4 * npx, kn + 4 * npx, &used[4], &mem) == SL_OK, "no refine");
+    CHECK(pts_phases(n, 4096, 5, 2, ph + 3 * npx, kn + 3 * npx, &used[3], &mem) == SL_OK, "4 kB");
+    CHECK(pts_phases(n, 0, 0, 2, ph + 4 * npx, kn + 4 * npx, &used[4], &mem) == SL_OK, "no refine");
     CHECK(used[3] == 0 && !memcmp(ph + 3 * npx, ph + 4 * npx, npx * sizeof *ph),
           "4 kB: the refinement took %zu bytes", used[3]);
     free(ph);

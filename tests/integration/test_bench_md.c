@@ -194,7 +194,7 @@ TEST(existing_markdown_needs_overwrite)
 }
 
 /* `bench --scaling`: for each method a row per thread count (1 and 2 at
- * least) whose stages account for its wall time (the stages partition
+ * least) whose CPU time fits its CPUs and whose stages account for its wall time (the stages partition
  * pipeline_run: their sum within 5 % + 5 ms of the total, never above it
  * by more than the printed rounding), speedup 1.00 at one thread, and
  * the parallel-fraction line; a bad method is named. */
@@ -217,13 +217,17 @@ TEST(scaling_stages_account_for_the_time)
         for (const char *l = out; (l = strstr(l, methods[m])) != NULL; l++) {
             if (l != out && l[-1] != '\n')
                 continue;
-            double v[10];
+            double v[10], cpu;
             int th;
             char name[16];
-            if (sscanf(l, "%15s %d %lf %lf %lf %lf %lf %lf %lf %lf %lf", name, &th, &v[0],
-                       &v[1], &v[2], &v[3], &v[4], &v[5], &v[6], &v[7], &v[8]) != 11 ||
+            if (sscanf(l, "%15s %d %lf %lf %lf %lf %lf %lf %lf %lf %lf %lf", name, &th, &v[0],
+                       &cpu, &v[1], &v[2], &v[3], &v[4], &v[5], &v[6], &v[7], &v[8]) != 12 ||
                 strcmp(name, methods[m]))
                 continue;
+            /* pinned to th CPUs: no more CPU time than th x the wall time
+             * (+ the 10 ms the two are printed to) */
+            CHECK(cpu > 0 && cpu <= th * v[0] + 0.01, "%s at %d threads: cpu_s %.2f, %.3f s wall",
+                  methods[m], th, cpu, v[0]);
             double sum = 0;
             for (int k = 1; k <= 7; k++)
                 sum += v[k];

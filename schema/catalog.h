@@ -271,7 +271,9 @@ void catalog_run_clear(catalog_run *r);
  * SL_EINVAL when none or several match. */
 int catalog_run_resolve(catalog *c, const char *prefix,
                         char uuid_out[CATALOG_UUID_LEN + 1]);
-/* Newest first; filter NULL: every run. */
+/* Newest first (by creation time, runs created in the same millisecond by
+ * insertion order: three queued in one ms came out in uuid order); filter
+ * NULL: every run. */
 int catalog_run_list(catalog *c, const catalog_run_filter *filter,
                      catalog_run_fn fn, void *user);
 /* The calibration run for run `uuid`: of kind `kind`, done, with a cube,

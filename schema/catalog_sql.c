@@ -97,7 +97,7 @@ const char *const cat_sql[CS_COUNT] = {
         "SELECT " RUN_COLS "WHERE (?1 IS NULL OR r.state = ?1) "
         "AND (?2 IS NULL OR r.screen_id = ?2) AND r.created_ms >= ?3 "
         "AND (?5 IS NULL OR r.kind = ?5) "
-        "ORDER BY r.created_ms DESC, r.uuid LIMIT ?4",
+        "ORDER BY r.created_ms DESC, r.rowid DESC LIMIT ?4",
     /* catalog.h says which run calibrates which: `IS` so that two unknown
      * (NULL) settings match; the ROI compares as JSON text, written by one
      * function (dispatch.c's settings_json). */

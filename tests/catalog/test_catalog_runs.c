@@ -163,6 +163,20 @@ FXTEST(runs_round_trip_and_list)
     int calls = 0;
     CHECK(catalog_run_list(f->c, NULL, stop_at_first, &calls) == 7 &&
               calls == 1, "stop: %d calls", calls);
+    /* Three queued in one millisecond: newest first by insertion order
+     * (the daemon's start-run calls come that fast). */
+    char same[3][CATALOG_UUID_LEN + 1];
+    for (int i = 0; i < 3; i++) {
+        catalog_run_spec g = {.created_ms = 1700002000000, .screen_id = s3,
+                              .frames_requested = 5};
+        CHECK(catalog_run_insert(f->c, &g, same[i]) == SL_OK, "%s", catalog_errmsg(f->c));
+    }
+    fl = (catalog_run_filter){.limit = 3};
+    memset(&v, 0, sizeof v);
+    CHECK(catalog_run_list(f->c, &fl, collect_run, &v) == SL_OK && v.n == 3 &&
+              !strcmp(v.uuid[0], same[2]) && !strcmp(v.uuid[1], same[1]) &&
+              !strcmp(v.uuid[2], same[0]),
+          "same millisecond: not in the order inserted, newest first");
 
     char got[CATALOG_UUID_LEN + 1];
     CHECK(catalog_run_resolve(f->c, "0A1B2C", got) == SL_OK &&

@@ -133,20 +133,21 @@ static void count_job(void *ctx, int tid, int nthr)
         }
 }
 
-/* Weight descending, then storage order: a total order, so the kcap
- * strongest are the same on any run. */
+/* In the selection's scratch a triple's j holds its index among its
+ * target's triples.  Weight descending, then that index: a total order,
+ * so the kcap strongest are the same on any run. */
 static int cmp_strength(const void *x, const void *y)
 {
     const strong *a = x, *b = y;
     if (a->w != b->w)
         return a->w < b->w ? 1 : -1;
-    return (a->l1 > b->l1) - (a->l1 < b->l1);   /* l1: storage index here */
+    return (a->j > b->j) - (a->j < b->j);
 }
 
 static int cmp_index(const void *x, const void *y)
 {
     const strong *a = x, *b = y;
-    return (a->l1 > b->l1) - (a->l1 < b->l1);
+    return (a->j > b->j) - (a->j < b->j);
 }
 
 /* Target j's strong triples into out, in storage order; with more than
@@ -166,12 +167,12 @@ static int32_t list_target(const refine_ctx *c, int j, strong *out, strong *scr)
     for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
         if (strong_at(c, j, t, c->wmax[j], &q, &w)) {
             scr[m] = q;
-            scr[m++].l1 = (int32_t)(t - g->tstart[j]);   /* its index, for the order */
+            scr[m++].j = (int32_t)(t - g->tstart[j]);
         }
     qsort(scr, (size_t)m, sizeof *scr, cmp_strength);
     qsort(scr, (size_t)c->kcap, sizeof *scr, cmp_index);
     for (int32_t i = 0; i < c->kcap; i++)
-        strong_at(c, j, g->tstart[j] + scr[i].l1, 0, &out[i], &w);
+        out[i] = scr[i], out[i].j = j;
     return c->kcap;
 }
 

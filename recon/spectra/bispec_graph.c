@@ -279,9 +279,10 @@ static int scan_triples(bispec *b, const unsigned char *reach)
 
 /* The kernel's target order: tiles of BISPEC_TILE x BISPEC_TILE
  * frequencies, row by row, so that consecutive targets share most u1 legs
- * (u1 = u - u2 lies within R2 of u) and those stay in L2.  Any order
- * gives the same bits: each triple is summed by one thread, batch after
- * batch. */
+ * (u1 = u - u2 lies within R2 of u), and within a tile row by row too:
+ * the next target in a row takes the same u1 legs of a disk segment but
+ * one, still in L1 (bispec_kernel.c).  Any order gives the same bits:
+ * each triple is summed by one thread, batch after batch. */
 static int cmp_key(const void *x, const void *y)
 {
     const int64_t *a = x, *b = y;
@@ -297,12 +298,15 @@ static int tile_order(bispec *b)
     for (int j = 0; j < b->nf; j++) {
         int64_t tile = (int64_t)((b->fq[j] + b->qm) / BISPEC_TILE) * ntp +
                        (b->fp[j] + b->pm) / BISPEC_TILE;
-        key[j] = tile << 32 | j;
+        int64_t in = (int64_t)((b->fq[j] + b->qm) % BISPEC_TILE) * BISPEC_TILE +
+                     (b->fp[j] + b->pm) % BISPEC_TILE;
+        key[j] = (tile * BISPEC_TILE * BISPEC_TILE + in) << 32 | j;
     }
     qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
     for (int j = 0; j < b->nf; j++) {
         b->order[j] = (int32_t)(key[j] & 0xffffffff);
-        b->tbeg[j] = j == 0 || key[j] >> 32 != key[j - 1] >> 32;
+        b->tbeg[j] = j == 0 || (key[j] >> 32) / (BISPEC_TILE * BISPEC_TILE) !=
+                                  (key[j - 1] >> 32) / (BISPEC_TILE * BISPEC_TILE);
     }
     free(key);
     return SL_OK;

@@ -18,6 +18,8 @@
 #define BISPEC_SLOTS 8
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
 #define BISPEC_TILE 4
+/* and the u2 disk's rows in segments of BISPEC_SEG entries (bispec_kernel.c) */
+#define BISPEC_SEG 16
 /* The kernel's work units, claimed by whichever thread is free: a fixed
  * number, so their cut does not depend on the thread count. */
 #define BISPEC_KUNITS 128

@@ -20,19 +20,24 @@
 #include <time.h>
 
 /* The targets order[o0..o1) of one batch: a tile of up to 16
- * neighbouring targets at a time, and within it one row of the u2 disk at
- * a time for every target (each target's triples are sorted by disk
- * entry, so a row is a run of them), each run summed by the handle's
+ * neighbouring targets at a time (row by row, bispec_graph.c), and
+ * within it one segment of BISPEC_SEG entries of a u2 disk row at a time
+ * for every target (each target's triples are sorted by disk entry, so a
+ * segment is a run of them), each run summed by the handle's
  * bispec_lanes.c path.  Per triple: 2 bytes of index, two gathers from
  * small tables, the u1 and u2 leg blocks, one read-modify-write of the
- * accumulator, which streams through memory once per batch.  A u2 row's
- * legs and the band of u1 legs it pairs with across the tile (~60 and
- * ~250 legs, 30 and 125 kB at 64 frames) are reused 16 times while in
- * L1/L2, where a whole disk per target (2 x 1.3 MB at R2 = 28) overflowed
- * L2.  Each triple is summed by one thread in a fixed order, so the bits
- * do not depend on the thread count.  Error: each batch's float sum is
- * within ~(log2 K + 4) 2^-24 of the sum of its terms' magnitudes; the
- * accumulators add batches in their own precision. */
+ * accumulator, which streams through memory once per batch.  Why
+ * segments: a segment's u2 legs (16, 14 kB at 100 frames) serve all 16
+ * targets, and the u1 legs of one target (u - u2, 16 in a row) are
+ * shifted by one for the tile's next target in the row, so both stay in
+ * L1; a whole u2 row (~57 legs each way, 100 kB) did not, and every leg
+ * came from L2: that, not the arithmetic, bounded the kernel on two
+ * threads (0.29 s, and 0.14 s with every leg in L1; now ~0.23 s, 200^2 x
+ * 100 frames, 15.4 M triples).  Each triple is summed by one thread in a
+ * fixed order, so the bits do not depend on the thread count or on this
+ * order.  Error: each batch's float sum is within ~(log2 K + 4) 2^-24 of
+ * the sum of its terms' magnitudes; the accumulators add batches in
+ * their own precision. */
 static void kernel(const bispec *b, int o0, int o1)
 {
     int nch = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES;
@@ -43,15 +48,16 @@ static void kernel(const bispec *b, int o0, int o1)
             ;
         for (int i = o; i < e; i++)
             cur[i - o] = b->tstart[b->order[i]];
-        for (int r = 0; r < b->nrow; r++) {
-            int kend = b->drow[r + 1];
-            for (int i = o; i < e; i++) {
-                int j = b->order[i];
-                int64_t t = cur[i - o], tend = b->tstart[j + 1];
-                if (t < tend && b->tk[t] < kend)
-                    cur[i - o] = run(b, j, t, tend, kend, nch);
+        for (int r = 0; r < b->nrow; r++)
+            for (int ks = b->drow[r]; ks < b->drow[r + 1]; ks += BISPEC_SEG) {
+                int kend = ks + BISPEC_SEG < b->drow[r + 1] ? ks + BISPEC_SEG : b->drow[r + 1];
+                for (int i = o; i < e; i++) {
+                    int j = b->order[i];
+                    int64_t t = cur[i - o], tend = b->tstart[j + 1];
+                    if (t < tend && b->tk[t] < kend)
+                        cur[i - o] = run(b, j, t, tend, kend, nch);
+                }
             }
-        }
     }
 }
 

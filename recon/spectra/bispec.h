@@ -40,9 +40,9 @@
  * reports the bytes actually allocated.  Cost at 200 x 200, R2 = 28, a
  * full disk r_c = 99 (F 15379, T 15.39 M; 182 MB with float accumulators
  * and 128-frame batches, 286 MB with double and 64): setup 0.24 s on one
- * thread, 0.11 on two; the triple kernel for 100 frames 0.76 s on one,
- * 0.39-0.43 on two (the 2-core VM, AVX-512; its accumulators' first touch
- * included).  A 17-hole mask's support (54 % of the plane) cuts T to
+ * thread, 0.11 on two; the triple kernel for 100 frames 0.39-0.48 s on
+ * one, 0.20-0.26 on two (the 2-core VM, AVX-512, fastest of 4-6 runs;
+ * its accumulators' first touch included).  A 17-hole mask's support (54 % of the plane) cuts T to
  * ~9.3 M, a 7-hole one to ~1.7 M.
  *
  * Streaming.  bispec_add copies the frame into one of BISPEC_SLOTS slots;
@@ -51,10 +51,11 @@
  * (bispec_batch: BISPEC_BATCH_MAX, halved while the batch buffer would
  * pass BISPEC_BATCH_BYTES or opts.batch_bytes).  The triple loop runs
  * once per batch, so each accumulator is read and written once per batch
- * rather than once per frame.  It visits the targets in small tiles, so
- * the u1 legs they share stay in L2, each thread on a range of targets
- * with equal triple counts; each triple is summed by one thread, so the
- * bits do not depend on the thread count.  Results flush the partial
+ * rather than once per frame.  It visits the targets in small tiles and
+ * the u2 disk in short segments, so the legs they share stay in L1, the
+ * threads claiming work units of about equal triple counts; each triple
+ * is summed by one thread, so the bits do not depend on the thread
+ * count.  Results flush the partial
  * batch first.
  *
  * Phase recovery and image: see phasor.h and bispec_image.

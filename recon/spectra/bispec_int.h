@@ -17,7 +17,7 @@
  * and their slots (in, out) cost 12 w h bytes each. */
 #define BISPEC_SLOTS 8
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
-#define BISPEC_TILE 4
+#define BISPEC_TILE 8
 /* and the u2 disk's rows in segments of BISPEC_SEG entries (bispec_kernel.c) */
 #define BISPEC_SEG 16
 /* The kernel's work units, claimed by whichever thread is free: a fixed

@@ -19,25 +19,27 @@
 #include <string.h>
 #include <time.h>
 
-/* The targets order[o0..o1) of one batch: a tile of up to 16
- * neighbouring targets at a time (row by row, bispec_graph.c), and
- * within it one segment of BISPEC_SEG entries of a u2 disk row at a time
- * for every target (each target's triples are sorted by disk entry, so a
- * segment is a run of them), each run summed by the handle's
+/* The targets order[o0..o1) of one batch: a tile of up to 64
+ * neighbouring targets at a time (8 x 8, row by row, bispec_graph.c),
+ * and within it one segment of BISPEC_SEG entries of a u2 disk row at a
+ * time for every target (each target's triples are sorted by disk entry,
+ * so a segment is a run of them), each run summed by the handle's
  * bispec_lanes.c path.  Per triple: 2 bytes of index, two gathers from
  * small tables, the u1 and u2 leg blocks, one read-modify-write of the
  * accumulator, which streams through memory once per batch.  Why
- * segments: a segment's u2 legs (16, 14 kB at 100 frames) serve all 16
- * targets, and the u1 legs of one target (u - u2, 16 in a row) are
- * shifted by one for the tile's next target in the row, so both stay in
- * L1; a whole u2 row (~57 legs each way, 100 kB) did not, and every leg
- * came from L2: that, not the arithmetic, bounded the kernel on two
- * threads (0.29 s, and 0.14 s with every leg in L1; now ~0.23 s, 200^2 x
- * 100 frames, 15.4 M triples).  Each triple is summed by one thread in a
- * fixed order, so the bits do not depend on the thread count or on this
- * order.  Error: each batch's float sum is within ~(log2 K + 4) 2^-24 of
- * the sum of its terms' magnitudes; the accumulators add batches in
- * their own precision. */
+ * segments: a segment's u2 legs (16, 14 kB at 100 frames) serve all the
+ * tile's targets, and the u1 legs of one target (u - u2, 16 in a row)
+ * are shifted by one for the next target in the row, so both stay in L1
+ * (23 u1 legs per tile row, 20 kB); a whole u2 row (~57 legs each way,
+ * 100 kB) did not, and every leg came from L2: that, not the arithmetic,
+ * bounded the kernel on two threads (0.29 s, and 0.14 s with every leg
+ * in L1; with 4 x 4 tiles and segments 0.26 s, with 8 x 8 0.20 s; 200^2 x
+ * 100 frames, 15.4 M triples; 16 x 16 and segments of 8 to 32 were no
+ * better).  Each triple is summed by one thread in a fixed order, so the
+ * bits do not depend on the thread count or on this order.  Error: each
+ * batch's float sum is within ~(log2 K + 4) 2^-24 of the sum of its
+ * terms' magnitudes; the accumulators add batches in their own
+ * precision. */
 static void kernel(const bispec *b, int o0, int o1)
 {
     int nch = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES;

@@ -249,7 +249,10 @@ int camera_heartbeat_ms(camera *c, int *ms);
 int camera_check(camera *c);
 int camera_probe(camera *c);
 
-/* Start streaming into a pool of nbuffers buffers (2..1024; 0 = 16). */
+/* Start streaming into a pool of nbuffers buffers (2..1024; 0 = 16).  An
+ * acquisition the camera may still run (towards a stream this handle no
+ * longer has: control lost and taken back) is stopped first, so that the
+ * frames come to this stream. */
 int camera_start(camera *c, int nbuffers);
 /* Next buffer within timeout_ms (>= 0): SL_OK (check out->status),
  * CAMERA_ETIMEOUT, CAMERA_ELOST, SL_ERANGE when a good frame does not fit

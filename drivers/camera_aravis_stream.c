@@ -45,6 +45,19 @@ int arvcam_start(void *st, int nbuffers, sl_err *err)
     if (ge)
         return arvcam_fail(err, a, "read the payload size", ge);
     arv_camera_set_acquisition_mode(a->cam, ARV_ACQUISITION_MODE_CONTINUOUS, NULL);
+    /* The camera may still be acquiring towards a stream this handle no
+     * longer has (control lost mid-run and taken back: what ran out was
+     * the heartbeat, not the acquisition).  AcquisitionStart then changes
+     * nothing, and a camera that fixed its destination when it began
+     * streaming keeps sending there: Aravis's fake GigE camera, controlled
+     * again, starts streaming at its next 100 ms tick to the port it then
+     * holds (0, the closed old stream's) and reads the port again only
+     * after a stop.  When that tick fell between the reconnect taking
+     * control and the new stream's port, no frame ever came
+     * (test_daemon_matrix camera_control_lost, 2 runs in 110).  Stopped
+     * first, the start below is a real one, towards this stream; a camera
+     * that was not acquiring stays stopped (no error to act on). */
+    arv_camera_stop_acquisition(a->cam, NULL);
     arvcam_drop_stream(a);
     a->stream = arv_camera_create_stream(a->cam, NULL, NULL, &ge);
     if (!a->stream)

@@ -12,7 +12,14 @@
  *   second_host         a second handle on a camera the first controls:
  *                       either it is refused at open or both calls say
  *                       it does not control the camera; the first still
- *                       does.
+ *                       does;
+ *   control_taken_back  the camera drops this host mid-stream (SIGUSR1),
+ *                       still acquiring: camera_pop says CAMERA_ELOST,
+ *                       camera_reconnect takes it back and frames come
+ *                       again, restarted by the reconnect and, the second
+ *                       time, by a camera_start 300 ms after it (by then
+ *                       the camera streams again, towards the dropped
+ *                       stream's port: the start must stop it first).
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -133,8 +140,63 @@ static void body_second(tc *t)
           probe1);
 }
 
+/* camera_pop for up to limit_s until it returns `until` (SL_OK: a frame,
+ * whatever its status, came to this stream; or CAMERA_ELOST) or another
+ * error: that code; CAMERA_ETIMEOUT when neither came. */
+static int pop_until(camera *c, int until, double limit_s)
+{
+    uint16_t pix[64 * 64];
+    double end = fx_now() + limit_s;
+    while (fx_now() < end) {
+        int rc = camera_pop(c, 200, &(camera_frame){.u16 = pix, .capacity_px = 64 * 64});
+        if (rc == until || (rc != SL_OK && rc != CAMERA_ETIMEOUT))
+            return rc;
+    }
+    return CAMERA_ETIMEOUT;
+}
+
+static void body_taken_back(tc *t)
+{
+    fx_proc fk;
+    camera *c = NULL;
+    sl_err e = {0};
+    int first = -1, lost[2] = {-1, -1}, back[2] = {-1, -1}, again[2] = {-1, -1};
+    CHECK(start_fake(&fk) == 0, "bin/specklab-fake-camera did not start (run make)");
+    CHECK(camera_open(&c, "aravis", "127.0.0.1", &e) == SL_OK, "%s", e.msg);
+    if (camera_start(c, 8) == SL_OK)
+        first = pop_until(c, SL_OK, 5);
+    for (int k = 0; k < 2 && first == SL_OK; k++) {
+        if (kill(fk.pid, SIGUSR1) != 0 || (lost[k] = pop_until(c, CAMERA_ELOST, 10)) !=
+                                              CAMERA_ELOST)
+            break;
+        if (k == 1)
+            camera_stop(c);
+        back[k] = camera_reconnect(c, 5000);
+        if (k == 1 && back[k] == SL_OK) {
+            /* Controlled again and still acquiring, the camera begins
+             * streaming at its next 100 ms tick, to the port it holds. */
+            fx_nap_ms(300);
+            back[k] = camera_start(c, 8);
+        }
+        if (back[k] != SL_OK || (again[k] = pop_until(c, SL_OK, 3)) != SL_OK)
+            break;
+    }
+    char msg[SL_ERRMSG_MAX];
+    snprintf(msg, sizeof msg, "%s", camera_errmsg(c));
+    camera_close(c);
+    fx_stop(&fk, SIGTERM, 5);
+    CHECK(first == SL_OK, "no frame before the drop: %d, %s", first, msg);
+    for (int k = 0; k < 2; k++)
+        CHECK(lost[k] == CAMERA_ELOST && back[k] == SL_OK && again[k] == SL_OK,
+              "drop %d (%s): pop %d, reconnect %d, frames after %d (%s)", k + 1,
+              k ? "started 300 ms after the reconnect" : "restarted by the reconnect",
+              lost[k], back[k], again[k], msg);
+}
+
 TEST(restart_seen_idle) { fx_in_netns(t, body_restart, 60); }
 TEST(gone_seen_idle) { fx_in_netns(t, body_gone, 60); }
 TEST(second_host) { fx_in_netns(t, body_second, 60); }
+TEST(control_taken_back) { fx_in_netns(t, body_taken_back, 60); }
 
-TC_MAIN(TC_CASE(restart_seen_idle), TC_CASE(gone_seen_idle), TC_CASE(second_host))
+TC_MAIN(TC_CASE(restart_seen_idle), TC_CASE(gone_seen_idle), TC_CASE(second_host),
+        TC_CASE(control_taken_back))

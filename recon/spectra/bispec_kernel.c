@@ -31,11 +31,8 @@
  * tile's targets, and the u1 legs of one target (u - u2, 16 in a row)
  * are shifted by one for the next target in the row, so both stay in L1
  * (23 u1 legs per tile row, 20 kB); a whole u2 row (~57 legs each way,
- * 100 kB) did not, and every leg came from L2: that, not the arithmetic,
- * bounded the kernel on two threads (0.29 s, and 0.14 s with every leg
- * in L1; with 4 x 4 tiles and segments 0.26 s, with 8 x 8 0.20 s; 200^2 x
- * 100 frames, 15.4 M triples; 16 x 16 and segments of 8 to 32 were no
- * better).  Each triple is summed by one thread in a fixed order, so the
+ * 100 kB) does not fit L1, and legs loaded from L2 cost the kernel as
+ * much as its arithmetic (docs/results.md).  Each triple is summed by one thread in a fixed order, so the
  * bits do not depend on the thread count or on this order.  Error: each
  * batch's float sum is within ~(log2 K + 4) 2^-24 of the sum of its
  * terms' magnitudes; the accumulators add batches in their own

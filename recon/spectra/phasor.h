@@ -88,15 +88,16 @@ size_t phasor_work_doubles(int nfreq);
  * (iters < 0: PHASOR_AUTO_ITERS when the misfit exceeds
  * PHASOR_AUTO_MISFIT, else none) of weighted least squares in phasor
  * form (Jacobi) over each target's triples of weight >= PHASOR_REFINE_REL
- * x its largest (listed once, 24 bytes each, allocated here; within
+ * x its largest (listed once, 16 bytes each, allocated here; within
  * g->refine_bytes each target keeps at most a common number, its
  * strongest): every
  * triple proposes a phasor for each of its three legs from the other
  * two, phi_j = arg of the sum of the proposals, seeds held; a round that
  * does not lower the weighted closure misfit is undone and ends it, as
  * does one that lowers it by less than 1e-3 of itself.  Cost: the recursion one
- * pass over the triples; refining three more to count and list them, then
- * O(strong triples) per round (~0.07 s per round at 200^2, R2 = 28).
+ * pass over the triples; refining two more to count and list them, then
+ * one pass over the strong triples per round (~0.04 s per round at
+ * 200^2, R2 = 28, on two threads).
  * Threads (pool): the recursion prepares its next block of triples on
  * the workers while the caller walks the current one (phasor_recur.c);
  * the refinement sums fixed chunks (phasor_refine.c).  The phases do not

@@ -30,6 +30,10 @@ static inline void tpool_run_or_inline(tpool *pool, tpool_fn fn, void *ctx)
 void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
                    const unsigned char *known);
 
+/* The k-th largest of v[0..m) (1 <= k <= m, no NaN), v reordered: the
+ * refinement's cut of a target to its k strongest triples. */
+float phasor_kth_largest(float *v, int32_t m, int32_t k);
+
 /* The recursion over targets 1..nfreq-1 in rank order on g->pool's
  * threads (phasor_recur.c): E and known start with DC known and every
  * phasor 1; *misfit gets the |B|-weighted closure misfit.  SL_ENOMEM. */

@@ -16,15 +16,18 @@
  * the strong triples are listed in REFINE_CHUNKS fixed chunks (blocks of
  * targets), each summed whole into its own proposal plane, and the
  * planes are added in chunk order: the same bits on any number of
- * threads.  The chunks stay separate lists (24 bytes a triple, once).
+ * threads.  The chunks stay separate lists (16 bytes a triple, once).
+ * The same pass sums each target's own proposals, which give the closure
+ * misfit at the phasors it started from: one pass over the lists per
+ * round, which both judges the last update and proposes the next.
  *
  * Memory: the lists are counted first and allocated to size.  Within
  * phasor_graph.refine_bytes every target keeps its strong triples up to a
  * common cap, the largest that fits, and a target over it its strongest
  * (the weak ones, 1 % of its best, add least); without the bound the
- * lists took up to 3x the accumulators (a quarter of the triples at 24
+ * lists took up to 2x the accumulators (a quarter of the triples at 16
  * bytes, against 8), outside the memory budget.  Counting costs one more
- * pass over the triples (three where two were).
+ * pass over the triples (two where one would do).
  */
 #include "phasor_int.h"
 
@@ -35,47 +38,32 @@
 
 #define REFINE_CHUNKS 16
 
-/* One strong triple of the refinement: target, legs, unit bispectrum
- * and weight. */
+/* One strong triple of the refinement, its target implied by where it
+ * is listed: legs and u = w b/|B| (its weight times the unit
+ * bispectrum).  16 bytes: a pass streams the lists, so their size is
+ * its memory traffic. */
 typedef struct strong {
-    int32_t j, l1, l2;
-    float br, bi, w;
+    int32_t l1, l2;
+    float ur, ui;
 } strong;
-
-/* Proposal for E(u_j) from one triple: w * E1 E2 conj(b). */
-static void propose(const double *E, const strong *q, double *zr, double *zi)
-{
-    double e1r = E[2 * q->l1], e1i = E[2 * q->l1 + 1];
-    double e2r = E[2 * q->l2], e2i = E[2 * q->l2 + 1];
-    double pr = e1r * e2r - e1i * e2i, pi = e1r * e2i + e1i * e2r;
-    *zr = q->w * (pr * q->br + pi * q->bi);
-    *zi = q->w * (pi * q->br - pr * q->bi);
-}
-
-/* Add a proposal for leg l (conjugated onto its half-plane frequency). */
-static void add_leg(double *Z, int n, int l, double zr, double zi)
-{
-    if (l >= n) {
-        l -= n;
-        zi = -zi;
-    }
-    Z[2 * l] += zr;
-    Z[2 * l + 1] += zi;
-}
 
 /* Shared state of the jobs below. */
 typedef struct refine_ctx {
     const phasor_graph *g;
     const unsigned char *known;
     double *wmax;                /* per target: its largest usable weight */
-    int32_t *nstrong;            /* per target: its strong triples */
+    int32_t *nstrong;            /* per target: its strong triples, then
+                                  * how many it lists */
+    int32_t most;                /* the most triples of one target */
+    float *wbuf;                 /* count_job: most weights per thread */
     int32_t kcap;                /* per target at most this many listed */
     size_t scratch;              /* bytes of the selection's scratch, at most */
     strong *part[REFINE_CHUNKS]; /* strong triples of target block k */
     int64_t npart[REFINE_CHUNKS]; /* -1: out of memory */
+    double wsum[REFINE_CHUNKS];  /* block k's sum of listed weights */
     const double *E;
-    double *zc;                  /* REFINE_CHUNKS planes of 2 nfreq */
-    double cost[REFINE_CHUNKS];
+    double *zc;                  /* REFINE_CHUNKS planes of 4 nfreq: both legs */
+    double fit[REFINE_CHUNKS];   /* block k's sum Re(conj(E_j) P_j) */
     atomic_int next;             /* the next chunk to claim (run() resets) */
 } refine_ctx;
 
@@ -90,90 +78,117 @@ static void run(refine_ctx *c, tpool_fn job)
 
 static int chunk_start(int n, int k) { return (int)((int64_t)n * k / REFINE_CHUNKS); }
 
-/* Triple t of target j as a strong one, or 0 when it is not: legs known,
- * weight and |B| > 0, weight >= PHASOR_REFINE_REL x wmax (wmax 0: any);
- * *w its weight. */
-static int strong_at(const refine_ctx *c, int j, int64_t t, double wmax, strong *q, double *w)
+/* The weight of triple t of target j when it may take part (legs known,
+ * weight and |B| > 0), else 0; *q its record. */
+static double usable(const refine_ctx *c, int j, int64_t t, strong *q)
 {
     int n = c->g->nfreq, l1, l2;
-    double br, bi;
-    phasor_triple(c->g, j, t, &l1, &l2, &br, &bi, w);
+    double br, bi, w;
+    phasor_triple(c->g, j, t, &l1, &l2, &br, &bi, &w);
     double mod = sqrt(br * br + bi * bi);
-    if (!c->known[l1 % n] || !c->known[l2 % n] || !(*w > 0) || !(mod > 0) ||
-        *w < PHASOR_REFINE_REL * wmax)
+    if (!c->known[l1 % n] || !c->known[l2 % n] || !(w > 0) || !(mod > 0))
         return 0;
-    *q = (strong){j, l1, l2, (float)(br / mod), (float)(bi / mod), (float)*w};
-    return 1;
+    *q = (strong){l1, l2, (float)(w * br / mod), (float)(w * bi / mod)};
+    return w;
 }
+
+/* A usable triple of weight w (as listed: in float) is strong when
+ * w >= PHASOR_REFINE_REL x its target's largest.  count_job and list_job
+ * must agree to the bit: the lists are allocated to count_job's size. */
+static int is_strong(float w, double wmax) { return w > 0 && w >= PHASOR_REFINE_REL * wmax; }
 
 /* tpool job: each known target's largest weight and its number of strong
  * triples, those of weight >= PHASOR_REFINE_REL x that largest, so every
  * frequency keeps its best constraints (a threshold on the global largest
  * weight kept only the few triples near the origin, where |B| is larger
- * by orders of magnitude). */
+ * by orders of magnitude).  The weights wait in the thread's wbuf, so
+ * each triple is read once. */
 static void count_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     const phasor_graph *g = c->g;
+    float *wb = c->wbuf + (size_t)tid * (size_t)c->most;
     strong q;
-    double w;
-    (void)tid, (void)nthr;
+    (void)nthr;
     for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;)
         for (int j = chunk_start(g->nfreq, k); j < chunk_start(g->nfreq, k + 1); j++) {
             double wmax = 0;
-            int32_t ns = 0;
+            int32_t ns = 0, m = (int32_t)(g->tstart[j + 1] - g->tstart[j]);
             if (j > 0 && c->known[j]) {
-                for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
-                    if (strong_at(c, j, t, 0, &q, &w))
-                        wmax = fmax(wmax, w);
-                for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
-                    ns += strong_at(c, j, t, wmax, &q, &w);
+                for (int32_t i = 0; i < m; i++) {
+                    double w = usable(c, j, g->tstart[j] + i, &q);
+                    wb[i] = (float)w;
+                    wmax = fmax(wmax, w);
+                }
+                for (int32_t i = 0; i < m; i++)
+                    ns += is_strong(wb[i], wmax);
             }
             c->wmax[j] = wmax, c->nstrong[j] = ns;
         }
 }
-
-/* In the selection's scratch a triple's j holds its index among its
- * target's triples.  Weight descending, then that index: a total order,
- * so the kcap strongest are the same on any run. */
-static int cmp_strength(const void *x, const void *y)
+/* Quickselect with a three-way partition (equal weights are common:
+ * every triple of noiseless data weighs the same under SNR weights),
+ * O(m) expected where sorting the target's triples took a third of a
+ * noisy run. */
+float phasor_kth_largest(float *v, int32_t m, int32_t k)
 {
-    const strong *a = x, *b = y;
-    if (a->w != b->w)
-        return a->w < b->w ? 1 : -1;
-    return (a->j > b->j) - (a->j < b->j);
-}
-
-static int cmp_index(const void *x, const void *y)
-{
-    const strong *a = x, *b = y;
-    return (a->j > b->j) - (a->j < b->j);
+    int32_t lo = 0, hi = m, want = k - 1;   /* want: index in descending order */
+    for (;;) {
+        float x = v[lo], y = v[lo + (hi - lo) / 2], z = v[hi - 1];
+        float p = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        int32_t a = lo, i = lo, b = hi;   /* [lo,a) > p, [a,b) == p, [b,hi) < p */
+        while (i < b) {
+            float t = v[i];
+            if (t > p)
+                v[i++] = v[a], v[a++] = t;
+            else if (t < p)
+                v[i] = v[--b], v[b] = t;
+            else
+                i++;
+        }
+        if (want < a)
+            hi = a;
+        else if (want >= b)
+            lo = b;
+        else
+            return p;
+    }
 }
 
 /* Target j's strong triples into out, in storage order; with more than
- * kcap, its kcap strongest (scr: room for nstrong[j]).  How many. */
-static int32_t list_target(const refine_ctx *c, int j, strong *out, strong *scr)
+ * kcap, its kcap strongest: by weight, ties to the lower index, so the
+ * same ones on any run (scr, w, tmp: room for nstrong[j] when cut).  How many;
+ * *wsum gets their weights added. */
+static int32_t list_target(const refine_ctx *c, int j, strong *out, strong *scr, float *w,
+                           float *tmp, double *wsum)
 {
     const phasor_graph *g = c->g;
     strong q;
-    double w;
     int32_t m = 0;
     if (c->nstrong[j] <= c->kcap) {
-        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
-            if (strong_at(c, j, t, c->wmax[j], &q, &w))
-                out[m++] = q;
+        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
+            float wt = (float)usable(c, j, t, &q);
+            if (is_strong(wt, c->wmax[j]))
+                out[m++] = q, *wsum += wt;
+        }
         return m;
     }
-    for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++)
-        if (strong_at(c, j, t, c->wmax[j], &q, &w)) {
-            scr[m] = q;
-            scr[m++].j = (int32_t)(t - g->tstart[j]);
+    for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
+        float wt = (float)usable(c, j, t, &q);
+        if (is_strong(wt, c->wmax[j]))
+            scr[m] = q, w[m++] = wt;
+    }
+    memcpy(tmp, w, sizeof *tmp * (size_t)m);
+    float v = phasor_kth_largest(tmp, m, c->kcap);
+    int32_t above = 0, n = 0;
+    for (int32_t i = 0; i < m; i++)
+        above += w[i] > v;
+    for (int32_t i = 0, ties = c->kcap - above; i < m; i++)
+        if (w[i] > v || (w[i] == v && ties-- > 0)) {
+            out[n++] = scr[i];
+            *wsum += w[i];
         }
-    qsort(scr, (size_t)m, sizeof *scr, cmp_strength);
-    qsort(scr, (size_t)c->kcap, sizeof *scr, cmp_index);
-    for (int32_t i = 0; i < c->kcap; i++)
-        out[i] = scr[i], out[i].j = j;
-    return c->kcap;
+    return n;
 }
 
 /* tpool job: chunk k's list, allocated to its exact size. */
@@ -190,10 +205,17 @@ static void list_job(void *ctx, int tid, int nthr)
             most = c->nstrong[j] > c->kcap && c->nstrong[j] > most ? c->nstrong[j] : most;
         }
         c->part[k] = malloc(sizeof(strong) * (size_t)(len ? len : 1));
-        strong *scr = most ? malloc(sizeof(strong) * (size_t)most) : NULL;
+        /* a cut target's strong triples and their weights twice */
+        void *scr = most ? malloc((sizeof(strong) + 2 * sizeof(float)) * (size_t)most) : NULL;
+        float *w = (float *)((strong *)scr + most);
         c->npart[k] = c->part[k] && (scr || !most) ? 0 : -1;
-        for (int j = j0; j < j1 && c->npart[k] >= 0; j++)
-            c->npart[k] += list_target(c, j, c->part[k] + c->npart[k], scr);
+        c->wsum[k] = 0;
+        for (int j = j0; j < j1 && c->npart[k] >= 0; j++) {
+            int32_t got = list_target(c, j, c->part[k] + c->npart[k], scr, w, w + most,
+                                      &c->wsum[k]);
+            c->npart[k] += got;
+            c->nstrong[j] = got;
+        }
         free(scr);
     }
 }
@@ -226,16 +248,24 @@ static int32_t strong_cap(const refine_ctx *c, size_t bytes)
 }
 
 /* Every block's list within list_bytes (0: no bound), the selection's
- * scratch included (each thread one target's strong triples); 0 when some
- * block's could not be allocated, or none fits. */
+ * scratch included (each thread holds one target's strong triples and
+ * their weights); 0 when some block's could not be allocated, or none
+ * fits. */
 static int strong_triples(refine_ctx *c, size_t list_bytes)
 {
+    const phasor_graph *g = c->g;
+    int nthr = g->pool ? tpool_size(g->pool) : 1;
+    for (int j = 0; j < g->nfreq; j++)
+        c->most = g->tstart[j + 1] - g->tstart[j] > c->most
+                      ? (int32_t)(g->tstart[j + 1] - g->tstart[j]) : c->most;
+    if (!(c->wbuf = malloc(sizeof *c->wbuf * (size_t)nthr * (size_t)(c->most ? c->most : 1))))
+        return 0;
     run(c, count_job);
+    free(c->wbuf), c->wbuf = NULL;
     int32_t most = 0;
-    for (int j = 0; j < c->g->nfreq; j++)
+    for (int j = 0; j < g->nfreq; j++)
         most = c->nstrong[j] > most ? c->nstrong[j] : most;
-    int nthr = c->g->pool ? tpool_size(c->g->pool) : 1;
-    c->scratch = (size_t)nthr * (size_t)most * sizeof(strong);
+    c->scratch = (size_t)nthr * (size_t)most * (sizeof(strong) + 2 * sizeof(float));
     if (list_bytes > 0 && list_bytes <= c->scratch)
         return 0;
     if ((c->kcap = strong_cap(c, list_bytes ? list_bytes - c->scratch : 0)) < 1)
@@ -249,63 +279,71 @@ static int strong_triples(refine_ctx *c, size_t list_bytes)
     return 1;
 }
 
-/* tpool job: chunk k's proposals into plane k. */
-static void scatter_job(void *ctx, int tid, int nthr)
+/* tpool job: one pass over chunk k's triples at the phasors E.  Each
+ * triple proposes w E1 E2 conj(b) for its target (summed in a register,
+ * P_j) and E_j conj(E2) w b, E_j conj(E1) w b for its legs, into plane
+ * k (4 nfreq: a mirror leg n + l has its own slots, folded when the
+ * planes are added).  fit[k] = sum_j Re(conj(E_j) P_j): the closure
+ * misfit at E is the listed weights' sum minus it, so the pass that
+ * proposes the next phasors also judges these. */
+static void pass_job(void *ctx, int tid, int nthr)
 {
     refine_ctx *c = ctx;
     int n = c->g->nfreq;
+    const double *E = c->E;
     (void)tid, (void)nthr;
     for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;) {
-        double *Z = c->zc + (size_t)k * 2 * n;
-        memset(Z, 0, sizeof *Z * 2 * (size_t)n);
-        for (int64_t t = 0; t < c->npart[k]; t++) {
-            const strong *q = &c->part[k][t];
-            double pr, pi, ur = q->w * q->br, ui = q->w * q->bi;
-            double ejr = c->E[2 * q->j], eji = c->E[2 * q->j + 1];
-            propose(c->E, q, &pr, &pi);
-            Z[2 * q->j] += pr;
-            Z[2 * q->j + 1] += pi;
-            for (int side = 0; side < 2; side++) {
-                int lo_leg = side ? q->l1 : q->l2, lt = side ? q->l2 : q->l1;
-                double cr = c->E[2 * lo_leg], ci = -c->E[2 * lo_leg + 1];
-                double xr = ejr * cr - eji * ci, xi = ejr * ci + eji * cr;
-                add_leg(Z, n, lt, xr * ur - xi * ui, xr * ui + xi * ur);
+        double *Z = c->zc + (size_t)k * 4 * n, fit = 0;
+        memset(Z, 0, sizeof *Z * 4 * (size_t)n);
+        const strong *q = c->part[k];
+        for (int j = chunk_start(n, k); j < chunk_start(n, k + 1); j++) {
+            double ejr = E[2 * j], eji = E[2 * j + 1], pr = 0, pi = 0;
+            for (const strong *end = q + c->nstrong[j]; q < end; q++) {
+                double ur = q->ur, ui = q->ui;
+                double e1r = E[2 * q->l1], e1i = E[2 * q->l1 + 1];
+                double e2r = E[2 * q->l2], e2i = E[2 * q->l2 + 1];
+                double sr = e1r * e2r - e1i * e2i, si = e1r * e2i + e1i * e2r;
+                pr += sr * ur + si * ui;
+                pi += si * ur - sr * ui;
+                double ar = ejr * e2r + eji * e2i, ai = eji * e2r - ejr * e2i;
+                double br = ejr * e1r + eji * e1i, bi = eji * e1r - ejr * e1i;
+                Z[2 * q->l1] += ar * ur - ai * ui;
+                Z[2 * q->l1 + 1] += ar * ui + ai * ur;
+                Z[2 * q->l2] += br * ur - bi * ui;
+                Z[2 * q->l2 + 1] += br * ui + bi * ur;
             }
+            Z[2 * j] += pr;
+            Z[2 * j + 1] += pi;
+            fit += pr * ejr + pi * eji;
         }
+        c->fit[k] = fit;
     }
 }
 
-/* tpool job: chunk k's weighted closure misfit, sum w (1 - Re(E_j
- * conj(E1 E2 conj b))). */
-static void misfit_job(void *ctx, int tid, int nthr)
+/* A pass at c->E: the summed proposals into Z (2 nfreq), and the closure
+ * misfit at E returned. */
+static double pass(refine_ctx *c, double *Z)
 {
-    refine_ctx *c = ctx;
-    (void)tid, (void)nthr;
-    for (int k; (k = atomic_fetch_add(&c->next, 1)) < REFINE_CHUNKS;) {
-        double m = 0;
-        for (int64_t t = 0; t < c->npart[k]; t++) {
-            const strong *q = &c->part[k][t];
-            double pr, pi;
-            propose(c->E, q, &pr, &pi);
-            m += q->w - (pr * c->E[2 * q->j] + pi * c->E[2 * q->j + 1]);
-        }
-        c->cost[k] = m;
-    }
-}
-
-static double misfit(refine_ctx *c)
-{
-    run(c, misfit_job);
+    int n = c->g->nfreq;
+    run(c, pass_job);
     double m = 0;
     for (int k = 0; k < REFINE_CHUNKS; k++)
-        m += c->cost[k];
+        m += c->wsum[k] - c->fit[k];
+    memset(Z, 0, sizeof *Z * 2 * (size_t)n);
+    for (int k = 0; k < REFINE_CHUNKS; k++) {
+        const double *P = c->zc + (size_t)k * 4 * n;
+        for (int i = 0; i < n; i++) {
+            Z[2 * i] += P[2 * i] + P[2 * (n + i)];
+            Z[2 * i + 1] += P[2 * i + 1] - P[2 * (n + i) + 1];
+        }
+    }
     return m;
 }
 
 /* Bytes the refinement needs besides the strong triples' lists. */
 static size_t fixed_bytes(int n)
 {
-    return (size_t)n * (4 * sizeof(double) + 2 * REFINE_CHUNKS * sizeof(double) +
+    return (size_t)n * (4 * sizeof(double) + 4 * REFINE_CHUNKS * sizeof(double) +
                         sizeof(double) + sizeof(int32_t));
 }
 
@@ -322,36 +360,27 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
     if (g->refine_bytes > 0 && g->refine_bytes <= fixed)
         return;   /* no room for a single list */
     double *keep = malloc(sizeof *keep * 4 * (size_t)n);
-    c.zc = malloc(sizeof *c.zc * 2 * (size_t)n * REFINE_CHUNKS);
+    c.zc = malloc(sizeof *c.zc * 4 * (size_t)n * REFINE_CHUNKS);
     c.wmax = malloc(sizeof *c.wmax * (size_t)n);
     c.nstrong = malloc(sizeof *c.nstrong * (size_t)n);
     if (!keep || !c.zc || !c.wmax || !c.nstrong ||
         !strong_triples(&c, g->refine_bytes ? g->refine_bytes - fixed : 0))
         goto free_all;
-    free(c.wmax), c.wmax = NULL;
-    free(c.nstrong), c.nstrong = NULL;
     if (g->refine_used) {
         size_t listed = 0;
         for (int k = 0; k < REFINE_CHUNKS; k++)
             listed += (size_t)c.npart[k];
         *g->refine_used = fixed + listed * sizeof(strong) + c.scratch;
     }
-    double cost = misfit(&c);
+    double cost = pass(&c, Z);
     for (int it = 0; it < iters; it++) {
         memcpy(keep, E, sizeof *keep * 4 * (size_t)n);
-        run(&c, scatter_job);
-        for (size_t i = 0; i < 2 * (size_t)n; i++) {
-            double z = 0;
-            for (int k = 0; k < REFINE_CHUNKS; k++)
-                z += c.zc[(size_t)k * 2 * n + i];
-            Z[i] = z;
-        }
         for (int j = 1; j < n; j++) {
             double m = hypot(Z[2 * j], Z[2 * j + 1]);
             if (known[j] && !g->seed[j] && m > 0)
                 phasor_set(E, n, j, Z[2 * j] / m, Z[2 * j + 1] / m);
         }
-        double cm = misfit(&c);
+        double cm = pass(&c, Z);
         if (!(cm < cost)) {
             memcpy(E, keep, sizeof *keep * 4 * (size_t)n);
             break;
@@ -364,6 +393,7 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
 free_all:
     for (int k = 0; k < REFINE_CHUNKS; k++)
         free(c.part[k]);
+    free(c.wbuf);
     free(keep);
     free(c.zc);
     free(c.wmax);

@@ -7,6 +7,7 @@
 
 #include "base/rng.h"
 #include "spectra/bispec.h"
+#include "spectra/phasor_int.h"
 #include "tcheck.h"
 
 /* The phase recursion, run with the next block's early sums on other
@@ -180,4 +181,34 @@ TEST(refine_within_budget)
     free(kn);
 }
 
-TC_MAIN(TC_CASE(recursion_same_bits_any_threads), TC_CASE(refine_within_budget))
+static int cmp_desc(const void *x, const void *y)
+{
+    float a = *(const float *)x, b = *(const float *)y;
+    return (a < b) - (a > b);
+}
+
+/* The refinement's cut (phasor_kth_largest) against a sort: arrays of
+ * distinct values, of a few repeated ones and of one value, every k. */
+TEST(kth_largest_matches_sort)
+{
+    rng r;
+    rng_init(&r, 7, 0);
+    float v[257], srt[257], tmp[257];
+    for (int kind = 0; kind < 3; kind++)
+        for (int m = 1; m <= 257; m += 16) {
+            for (int i = 0; i < m; i++)
+                v[i] = kind == 0 ? (float)rng_uniform(&r)
+                     : kind == 1 ? (float)(int)(rng_uniform(&r) * 5) : 2.5f;
+            memcpy(srt, v, sizeof *v * (size_t)m);
+            qsort(srt, (size_t)m, sizeof *srt, cmp_desc);
+            for (int k = 1; k <= m; k++) {
+                memcpy(tmp, v, sizeof *v * (size_t)m);
+                float got = phasor_kth_largest(tmp, m, k);
+                CHECK(got == srt[k - 1], "kind %d, m %d, k %d: %g, sorted %g", kind, m, k,
+                      (double)got, (double)srt[k - 1]);
+            }
+        }
+}
+
+TC_MAIN(TC_CASE(recursion_same_bits_any_threads), TC_CASE(refine_within_budget),
+        TC_CASE(kth_largest_matches_sort))

@@ -65,17 +65,6 @@ static binary_result fringe_start(const fringe_result *f)
     return b;
 }
 
-static int closure_run(const pipe_binary_in *in, const binary_result *init,
-                       binary_result *out, closure_fit_info *info,
-                       const char **why)
-{
-    int rc = in->b ? bispec_binary(in->b, init, out, info)
-                   : tsm_binary(in->t, init, out, info);
-    if (rc != SL_OK)
-        *why = in->b ? bispec_errmsg(in->b) : tsm_errmsg(in->t);
-    return rc;
-}
-
 /* Angle between two PAs in degrees, modulo 360 or (mod180) 180. */
 static double pa_diff(double a, double b, int mod180)
 {
@@ -102,27 +91,29 @@ static void set_meas(pipeline_binary *r, int source, const binary_result *b)
     r->dm_mag = b->dm_mag, r->dm_err_mag = b->dm_err_mag;
 }
 
-/* The closure fit from each start; the smaller weighted residual wins. */
+/* The closure fit from each start (closure.h: the triples chosen once,
+ * the smaller weighted residual wins). */
 static void closure_from_starts(const pipe_binary_in *in, pipeline_binary *r,
                                 const char **why)
 {
-    binary_result starts[2];
+    binary_result starts[2], cp;
+    closure_fit_info info;
     int ns = 0;
     if (r->have_image)
         starts[ns++] = r->image;
     if (r->have_fringe)
         starts[ns++] = fringe_start(&r->fringe);
-    for (int i = 0; i < ns; i++) {
-        binary_result cp;
-        closure_fit_info info;
-        if (closure_run(in, &starts[i], &cp, &info, why) != SL_OK)
-            continue;
-        if (!r->have_closure || info.rms_rad < r->closure_info.rms_rad) {
-            r->closure = cp;
-            r->closure_info = info;
-            r->have_closure = 1;
-        }
+    if (ns == 0)
+        return;
+    int rc = in->b ? bispec_binary(in->b, ns, starts, &cp, &info)
+                   : tsm_binary(in->t, ns, starts, &cp, &info);
+    if (rc != SL_OK) {
+        *why = in->b ? bispec_errmsg(in->b) : tsm_errmsg(in->t);
+        return;
     }
+    r->closure = cp;
+    r->closure_info = info;
+    r->have_closure = 1;
 }
 
 static void verdict(pipeline_binary *r, const char *why)

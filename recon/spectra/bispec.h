@@ -185,9 +185,10 @@ int bispec_phase(bispec *b, double *phase, unsigned char *known);
 int bispec_image(bispec *b, const double *modulus, float *img);
 
 /* A binary fitted to the stored triples' closure phases (closure.h),
- * started from init (binary_measure on this handle's image).  info may
- * be NULL.  SL_EDATA for an equal pair or too few strong triples. */
-int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
+ * from each of nstart starts init[] (binary_measure on this handle's
+ * image, a fringe fit), the best kept.  info may be NULL.  SL_EDATA when
+ * every start is an equal pair or fails, or too few strong triples. */
+int bispec_binary(bispec *b, int nstart, const binary_result *init, binary_result *out,
                   closure_fit_info *info);
 
 /* The accumulators as flat doubles (the frame count among them), for a

@@ -99,10 +99,10 @@ int bispec_image(bispec *b, const double *modulus, float *img)
     return SL_OK;
 }
 
-int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
+int bispec_binary(bispec *b, int nstart, const binary_result *init, binary_result *out,
                   closure_fit_info *info)
 {
-    if (!b || !init || !out)
+    if (!b || !init || !out || nstart < 1)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_binary: NULL argument");
     if (!b->n)
@@ -110,6 +110,6 @@ int bispec_binary(bispec *b, const binary_result *init, binary_result *out,
     bispec_flush(b);
     phasor_graph g;
     graph_view(b, &g);
-    return closure_fit_binary(&g, b->fp, b->fq, b->w, b->h, 0, init, out,
+    return closure_fit_binary(&g, b->fp, b->fq, b->w, b->h, 0, nstart, init, out,
                               info, &b->err);
 }

@@ -1,5 +1,5 @@
 /* closure.c - see closure.h. */
-#include "closure.h"
+#include "closure_int.h"
 #include "base/tpool.h"
 
 #include <math.h>
@@ -8,15 +8,8 @@
 
 #define NP 3          /* dx, dy, ln r */
 #define MAX_STEPS 40
-#define CLOSURE_JK 8  /* jackknife groups */
 #define JK_STEPS 5    /* LM steps per jackknife refit (from the fit) */
 #define MAX_DSTEP_PX 1.0 /* largest LM step of d */
-
-typedef struct kept {
-    int32_t l1, l2, j; /* legs (phasor.h) and target */
-    float ph, wt;      /* arg B and |B| */
-    int32_t grp;       /* jackknife group: the sector of u_j's angle */
-} kept;
 
 /* cost()'s pass over the triples is cut into COST_CHUNKS fixed chunks,
  * summed on the pool's threads and added in chunk order: the same bits
@@ -24,13 +17,18 @@ typedef struct kept {
 #define COST_CHUNKS 16
 #define COST_SUMS (1 + NP + NP * NP)
 
+/* The model at one frequency: arg V and its gradient in (dx, dy, ln r),
+ * together so that a leg costs one cache line's half. */
+typedef struct legm {
+    double a, g[NP];
+} legm;
+
 typedef struct fitctx {
     const kept *t;
     long n;
     const double *k; /* 2 nf: each frequency's (kx, ky), radians per px */
     int nf;
-    double *a;  /* nf: arg V(u_j) */
-    double *gr; /* NP nf: d arg V / d (dx, dy, ln r) */
+    legm *mo;   /* nf: the model at each frequency */
     int skip;   /* jackknife group left out, -1 none */
     tpool *pool; /* NULL: this thread */
     int want_A;                          /* cost: also J^T W J, J^T W e */
@@ -47,58 +45,57 @@ static void model(fitctx *c, const double th[NP])
         double ph = kx * th[0] + ky * th[1];
         double zr = r * cos(ph), zi = -r * sin(ph);
         double vr = 1.0 + zr, vi = zi, v2 = vr * vr + vi * vi;
-        c->a[j] = atan2(vi, vr);
         double qr = v2 > 0 ? (zr * vr + zi * vi) / v2 : 0;
         double qi = v2 > 0 ? (zi * vr - zr * vi) / v2 : 0;
-        c->gr[NP * j] = -kx * qr;
-        c->gr[NP * j + 1] = -ky * qr;
-        c->gr[NP * j + 2] = qi;
+        c->mo[j] = (legm){atan2(vi, vr), {-kx * qr, -ky * qr, qi}};
     }
 }
 
-/* The model phase of leg l (l >= nf: the conjugate frequency) and its
- * gradient added with sign s into *m and J. */
-static inline void add_leg(const fitctx *c, int l, double s, double *m, double J[NP])
+/* The model of leg l: l >= nf is the conjugate frequency, whose phase
+ * and gradient change sign (*s).  Selects, not branches: the legs'
+ * halves come in no order a predictor could learn. */
+static inline const legm *leg_model(const fitctx *c, int l, double *s)
 {
-    if (l >= c->nf) {
-        l -= c->nf;
-        s = -s;
-    }
-    *m += s * c->a[l];
-    for (int k = 0; k < NP; k++)
-        J[k] += s * c->gr[NP * l + k];
+    int mirror = l >= c->nf;
+    *s = mirror ? -1.0 : 1.0;
+    return &c->mo[mirror ? l - c->nf : l];
 }
 
 /* tpool job: chunk k's share of the cost, f then b then A's lower
- * triangle, into part[k]. */
+ * triangle, into part[k].  Written out in scalars: with NP-loops over
+ * arrays GCC kept J and A on the stack, at twice the time. */
 static void cost_job(void *ctx, int tid, int nthr)
 {
     fitctx *c = ctx;
     for (int k = tid; k < COST_CHUNKS; k += nthr) {
-        double *f = c->part[k], *b = f + 1, *A = b + NP;
-        memset(f, 0, COST_SUMS * sizeof *f);
+        double f = 0, b0 = 0, b1 = 0, b2 = 0;
+        double a00 = 0, a10 = 0, a11 = 0, a20 = 0, a21 = 0, a22 = 0;
         for (long i = c->n * k / COST_CHUNKS; i < c->n * (k + 1) / COST_CHUNKS; i++) {
             const kept *t = &c->t[i];
-            if (t->grp == c->skip)
-                continue;
-            double m = 0, J[NP] = {0};
-            add_leg(c, t->l1, 1.0, &m, J);
-            add_leg(c, t->l2, 1.0, &m, J);
-            add_leg(c, t->j, -1.0, &m, J);
-            /* |e| < 4 pi (four terms in [-pi, pi]): two folds wrap it, at
-             * a tenth of remainder()'s cost */
+            double wt = t->grp == c->skip ? 0.0 : t->wt, s1, s2;
+            const legm *p1 = leg_model(c, t->l1, &s1), *p2 = leg_model(c, t->l2, &s2);
+            const legm *p3 = &c->mo[t->j];
+            double m = s1 * p1->a + s2 * p2->a - p3->a;
+            /* |e| < 4 pi (four terms in [-pi, pi]): wrapped by the
+             * nearest whole turn, rounded by truncation */
             double e = t->ph - m;
-            for (int w = 0; w < 2; w++)
-                e = e > M_PI ? e - 2.0 * M_PI : e < -M_PI ? e + 2.0 * M_PI : e;
-            *f += t->wt * e * e;
+            e -= 2.0 * M_PI * (double)(int)(e * (0.5 / M_PI) + copysign(0.5, e));
+            double we = wt * e;
+            f += we * e;
             if (!c->want_A)
                 continue;
-            for (int p = 0; p < NP; p++) {
-                b[p] += t->wt * J[p] * e;
-                for (int q = 0; q <= p; q++)
-                    A[p * NP + q] += t->wt * J[p] * J[q];
-            }
+            double j0 = s1 * p1->g[0] + s2 * p2->g[0] - p3->g[0];
+            double j1 = s1 * p1->g[1] + s2 * p2->g[1] - p3->g[1];
+            double j2 = s1 * p1->g[2] + s2 * p2->g[2] - p3->g[2];
+            b0 += we * j0, b1 += we * j1, b2 += we * j2;
+            double w0 = wt * j0, w1 = wt * j1, w2 = wt * j2;
+            a00 += w0 * j0, a10 += w1 * j0, a11 += w1 * j1;
+            a20 += w2 * j0, a21 += w2 * j1, a22 += w2 * j2;
         }
+        double *o = c->part[k], *A = o + 1 + NP;
+        o[0] = f, o[1] = b0, o[2] = b1, o[3] = b2;
+        memset(A, 0, NP * NP * sizeof *A);
+        A[0] = a00, A[3] = a10, A[4] = a11, A[6] = a20, A[7] = a21, A[8] = a22;
     }
 }
 
@@ -205,42 +202,6 @@ static double lm(fitctx *c, double th[NP], double *A, int max_steps,
     return f; /* A was computed at th: it changes only with an accepted step */
 }
 
-/* Triple t of target j: its legs, mean bispectrum and |B|. */
-static double triple_mod(const phasor_graph *g, int j, int64_t t, int *l1, int *l2, double *br,
-                         double *bi)
-{
-    double wt;
-    phasor_triple(g, j, t, l1, l2, br, bi, &wt);
-    return sqrt(*br * *br + *bi * *bi);
-}
-
-/* Keep the triples with |B| >= thr: counts when out is NULL.  *mx (may
- * be NULL) gets the largest |B| seen. */
-static long keep_triples(const phasor_graph *g, const int32_t *fp,
-                         const int32_t *fq, double thr, kept *out, double *mx)
-{
-    long n = 0;
-    for (int j = 1; j < g->nfreq; j++)
-        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-            int l1, l2;
-            double br, bi, m = triple_mod(g, j, t, &l1, &l2, &br, &bi);
-            if (mx && m > *mx)
-                *mx = m;
-            if (!(m >= thr))
-                continue;
-            if (out) {
-                /* half-plane angle in [0, pi) -> CLOSURE_JK sectors */
-                double ang = atan2(fq[j], fp[j]);
-                if (ang < 0)
-                    ang += M_PI;
-                int grp = (int)(ang / M_PI * CLOSURE_JK) % CLOSURE_JK;
-                out[n] = (kept){l1, l2, j, (float)atan2(bi, br), (float)m, grp};
-            }
-            n++;
-        }
-    return n;
-}
-
 static void fill_result(const binary_result *init, const double th[NP],
                         const double C[NP * NP], double infl, int nfreq,
                         binary_result *out)
@@ -341,7 +302,7 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep, t
     int nused = 0;
     if (count_used(t, n, nf, &nused) != SL_OK)
         return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
-    fitctx c = {t, n, kv, nf, kv + 2 * (size_t)nf, kv + 3 * (size_t)nf, -1, pool, 0, {{0}}};
+    fitctx c = {t, n, kv, nf, (legm *)(kv + 2 * (size_t)nf), -1, pool, 0, {{0}}};
     double lr0 = log(fmin(fmax(init->flux_ratio, 1e-3), 0.9));
     double best[NP] = {init->dx_px, init->dy_px, lr0};
     double A[NP * NP], Abest[NP * NP] = {0}, fbest = INFINITY;
@@ -393,125 +354,104 @@ static int fit_kept(const kept *t, long n, double *kv, int nf, double max_sep, t
     return SL_OK;
 }
 
-/* The threshold that keeps at most about cap of the triples at or above
- * thr, the strongest: a histogram of log(|B| / mx) in CAP_BINS bins
- * between thr and mx, cut where the running count would pass cap. */
-#define CAP_BINS 1024
-static double cap_threshold(const phasor_graph *g, double mx, double thr, long cap)
+/* Start s within SAME_START_PX of a binary fitted from an earlier start,
+ * or of its mirror (every fit tries d and -d): its fit would end in the
+ * same minimum of the cost, whose minima lie about a pixel apart. */
+#define SAME_START_PX 0.5
+static int fitted_already(const binary_result *init, int s, const binary_result *fits,
+                          const int *ok)
 {
-    long hist[CAP_BINS] = {0};
-    double lo = log(thr / mx); /* < 0 */
-    for (int j = 1; j < g->nfreq; j++)
-        for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
-            int l1, l2;
-            double br, bi, m = triple_mod(g, j, t, &l1, &l2, &br, &bi);
-            if (!(m >= thr))
-                continue;
-            int b = (int)(log(m / mx) / lo * CAP_BINS);
-            hist[b < 0 ? 0 : b >= CAP_BINS ? CAP_BINS - 1 : b]++;
-        }
-    long n = 0;
-    for (int b = 0; b < CAP_BINS; b++) {
-        if (n + hist[b] > cap)
-            return mx * exp(lo * b / CAP_BINS);
-        n += hist[b];
+    for (int i = 0; i < s; i++) {
+        double dx = init[s].dx_px, dy = init[s].dy_px, fx = fits[i].dx_px, fy = fits[i].dy_px;
+        if (ok[i] && fmin(hypot(dx - fx, dy - fy), hypot(dx + fx, dy + fy)) < SAME_START_PX)
+            return 1;
     }
-    return thr;
+    return 0;
 }
 
-int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
-                       const int32_t *fq, int w, int h, double rel_min,
-                       const binary_result *init, binary_result *out,
-                       closure_fit_info *info, sl_err *err)
+/* The fit from each start that is not an equal pair nor at a binary
+ * already fitted; the smaller weighted rms residual wins.  kv: 6 nf
+ * doubles, the k-vectors first. */
+#define MAX_STARTS 8
+static int fit_starts(const kept *t, long n, double *kv, int nf, double max_sep, tpool *pool,
+                      int nstart, const binary_result *init, binary_result *out,
+                      closure_fit_info *info, sl_err *err)
 {
-    if (!g || !fp || !fq || !init || !out || g->nfreq < 2 || w < 2 || h < 2)
+    int rc = SL_EDATA, found = 0, ok[MAX_STARTS] = {0};
+    binary_result fits[MAX_STARTS];
+    double best = INFINITY;
+    for (int s = 0; s < nstart && s < MAX_STARTS; s++) {
+        binary_result r;
+        closure_fit_info fi;
+        if (is_equal_pair(&init[s])) {
+            rc = refuse_equal(&init[s], err);
+            continue;
+        }
+        if (fitted_already(init, s, fits, ok))
+            continue;
+        if ((rc = fit_kept(t, n, kv, nf, max_sep, pool, &init[s], &r, &fi, err)) != SL_OK)
+            continue;
+        fits[s] = r, ok[s] = 1;
+        if (!found || fi.rms_rad < best) {
+            best = fi.rms_rad, found = 1;
+            *out = r;
+            if (info)
+                *info = fi;
+        }
+    }
+    return found ? SL_OK : rc;
+}
+
+int closure_fit_binary(const phasor_graph *g, const int32_t *fp, const int32_t *fq, int w,
+                       int h, double rel_min, int nstart, const binary_result *init,
+                       binary_result *out, closure_fit_info *info, sl_err *err)
+{
+    if (!g || !fp || !fq || !init || !out || nstart < 1 || g->nfreq < 2 || w < 2 || h < 2)
         return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
-    if (is_equal_pair(init))
-        return refuse_equal(init, err);
-    int nf = g->nfreq, rc;
-    double mx = 0;
-    keep_triples(g, fp, fq, INFINITY, NULL, &mx);
-    double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
-    long n = keep_triples(g, fp, fq, thr, NULL, NULL);
-    if (n > CLOSURE_MAX_TRIPLES) {
-        thr = cap_threshold(g, mx, thr, CLOSURE_MAX_TRIPLES);
-        n = keep_triples(g, fp, fq, thr, NULL, NULL);
-    }
-    if (n < 16)
-        return sl_seterr(err, SL_EDATA, "closure fit: only %ld triples "
-                         "above %.3g of the strongest", n, thr);
-    kept *t = malloc((size_t)n * sizeof *t);
+    int nf = g->nfreq, s = 0, rc;
+    while (s < nstart && is_equal_pair(&init[s]))
+        s++;
+    if (s == nstart)
+        return refuse_equal(&init[nstart - 1], err);
+    kept *t = NULL;
+    long n = 0;
     double *k = malloc((size_t)nf * 6 * sizeof *k);
-    if (!t || !k) {
-        rc = sl_seterr(err, SL_ENOMEM, "closure fit: out of memory "
-                       "(%ld triples)", n);
+    if (!k)
+        return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
+    if ((rc = closure_keep(g, fp, fq, rel_min, CLOSURE_MAX_TRIPLES, &t, &n, err)) != SL_OK)
         goto free_buffers;
-    }
-    keep_triples(g, fp, fq, thr, t, NULL);
     for (int j = 0; j < nf; j++) {
         k[2 * j] = 2.0 * M_PI * fp[j] / w;
         k[2 * j + 1] = 2.0 * M_PI * fq[j] / h;
     }
-    rc = fit_kept(t, n, k, nf, 0.5 * (w < h ? w : h), g->pool, init, out, info, err);
+    rc = fit_starts(t, n, k, nf, 0.5 * (w < h ? w : h), g->pool, nstart, init, out, info, err);
 free_buffers:
     free(t);
     free(k);
     return rc;
 }
 
-/* TSM's pairs at or above thr (counts when out is NULL; *mx: the largest). */
-static long keep_1d(int nang, int nf, const int *off, const int *len, int np,
-                    const double *bre, const double *bim, double thr,
-                    kept *out, double *mx)
-{
-    long n = 0;
-    for (int k = 0; k < nang; k++)
-        for (int u1 = 1; u1 < nf; u1++)
-            for (int u2 = 1; u2 <= len[u1]; u2++) {
-                size_t q = (size_t)k * np + off[u1] + u2 - 1;
-                double m = sqrt(bre[q] * bre[q] + bim[q] * bim[q]);
-                if (mx && m > *mx)
-                    *mx = m;
-                if (!(m >= thr))
-                    continue;
-                if (out) {
-                    int b = k * nf;
-                    out[n] = (kept){b + u1, b + u2, b + u1 + u2,
-                                    (float)atan2(bim[q], bre[q]), (float)m,
-                                    k * CLOSURE_JK / nang};
-                }
-                n++;
-            }
-    return n;
-}
-
-int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
-                          const int *len, int np, const double *bre,
-                          const double *bim, double rel_min,
+int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off, const int *len, int np,
+                          const double *bre, const double *bim, double rel_min, int nstart,
                           const binary_result *init, binary_result *out,
                           closure_fit_info *info, sl_err *err)
 {
-    if (nang < 1 || nf < 3 || nproj < 2 || !off || !len || np < 1 || !bre ||
-        !bim || !init || !out)
+    if (nang < 1 || nf < 3 || nproj < 2 || !off || !len || np < 1 || !bre || !bim || !init ||
+        !out || nstart < 1)
         return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
-    if (is_equal_pair(init))
-        return refuse_equal(init, err);
-    double mx = 0;
-    keep_1d(nang, nf, off, len, np, bre, bim, INFINITY, NULL, &mx);
-    double thr = (rel_min > 0 ? rel_min : CLOSURE_REL_MIN) * mx;
-    long n = keep_1d(nang, nf, off, len, np, bre, bim, thr, NULL, NULL);
-    if (n < 16)
-        return sl_seterr(err, SL_EDATA, "closure fit: only %ld pairs above "
-                         "%.3g of the strongest", n, thr);
+    int s = 0;
+    while (s < nstart && is_equal_pair(&init[s]))
+        s++;
+    if (s == nstart)
+        return refuse_equal(&init[nstart - 1], err);
     int nt = nang * nf, rc;
-    kept *t = malloc((size_t)n * sizeof *t);
+    kept *t = NULL;
+    long n = 0;
     double *k = malloc((size_t)nt * 6 * sizeof *k);
-    if (!t || !k) {
-        rc = sl_seterr(err, SL_ENOMEM, "closure fit: out of memory "
-                       "(%ld pairs)", n);
+    if (!k)
+        return sl_seterr(err, SL_ENOMEM, "closure fit: out of memory");
+    if ((rc = closure_keep_1d(nang, nf, off, len, np, bre, bim, rel_min, &t, &n, err)) != SL_OK)
         goto free_buffers;
-    }
-    keep_1d(nang, nf, off, len, np, bre, bim, thr, t, NULL);
     /* Fourier slice: frequency j of angle k is the 2-D rho_j n_k. */
     for (int a = 0; a < nang; a++) {
         double th = M_PI * a / nang;
@@ -521,7 +461,7 @@ int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
             k[2 * (a * nf + j) + 1] = rho * sin(th);
         }
     }
-    rc = fit_kept(t, n, k, nt, 0.5 * nproj, NULL, init, out, info, err);
+    rc = fit_starts(t, n, k, nt, 0.5 * nproj, NULL, nstart, init, out, info, err);
 free_buffers:
     free(t);
     free(k);

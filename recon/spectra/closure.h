@@ -42,11 +42,14 @@
  * those seeds, still ~1.5x small because the sectors share frequencies
  * through the triples' other legs.
  *
- * Cost.  Three passes over the stored triples to select (phasor_triple),
- * then per LM step one pass over the kept ones (~5%) with the model
- * evaluated once per frequency: ~1 s in all on 100 frames of 200^2 at
- * R2 = 28 (560 000 triples kept).  Allocates 24 bytes per kept triple
- * and 4 doubles per frequency (13 MB there). */
+ * Cost.  Three passes over the stored triples to select them
+ * (phasor_triple; four when over CLOSURE_MAX_TRIPLES), on the graph's
+ * threads, then per LM step one pass over the kept ones with the model
+ * evaluated once per frequency: ~90 passes per start.  On a noisy
+ * 200^2 x 100 camera-style cube (R2 = 28, 12 M triples, 2.1 M kept)
+ * about 1.2 s on two threads.  Allocates 24 bytes per kept triple and 6
+ * doubles per frequency.
+ */
 #ifndef SL_CLOSURE_H
 #define SL_CLOSURE_H
 
@@ -81,16 +84,22 @@ typedef struct closure_fit_info {
 } closure_fit_info;
 
 /* Fit the binary to g's triples (frequencies fp, fq of g's nfreq, w x h
- * frame), starting from init (an image fit of the same data: its d and
- * flux_ratio; x1 is copied).  rel_min <= 0 means CLOSURE_REL_MIN.  out
- * gets d, sep, PA, flux ratio, dm and their 1-sigma errors (its other
- * fields are init's, except nfreq: the frequencies used, err_inflation:
- * triples / frequencies, fit_rms: NAN); info (may be NULL) what was
- * fitted.  SL_EDATA when init is an equal pair, fewer than 16 triples are
- * kept or the fit leaves the field, SL_ENOMEM. */
+ * frame) from each of nstart starts init[] (fits of the same data: their
+ * d and flux_ratio; x1 is copied; at most 8): the triples are chosen
+ * once, and the start whose fit leaves the smaller weighted rms residual
+ * wins.  A start within 0.5 px of a binary fitted from an earlier one
+ * (or of its mirror) is not fitted again: it would end in the same
+ * minimum.
+ * rel_min <= 0 means CLOSURE_REL_MIN.  out gets d, sep, PA, flux ratio,
+ * dm and their 1-sigma errors (its other fields are the winning start's,
+ * except nfreq: the frequencies used, err_inflation: triples /
+ * frequencies, fit_rms: NAN); info (may be NULL) what was fitted.
+ * SL_EDATA when every start is an equal pair or leaves the field, or
+ * fewer than 16 triples are kept (the message: the last start's reason),
+ * SL_ENOMEM. */
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
                        const int32_t *fq, int w, int h, double rel_min,
-                       const binary_result *init, binary_result *out,
+                       int nstart, const binary_result *init, binary_result *out,
                        closure_fit_info *info, sl_err *err);
 
 /* The same on TSM's 1-D bispectra (tsm_accum.h's sums): nang angles
@@ -104,7 +113,7 @@ int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
  * closure phases and the companion reads faint (tsm.h, Bias). */
 int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off,
                           const int *len, int np, const double *bre,
-                          const double *bim, double rel_min,
+                          const double *bim, double rel_min, int nstart,
                           const binary_result *init, binary_result *out,
                           closure_fit_info *info, sl_err *err);
 

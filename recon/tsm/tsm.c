@@ -363,10 +363,10 @@ int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
     return SL_OK;
 }
 
-int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
+int tsm_binary(tsm *t, int nstart, const binary_result *init, binary_result *out,
                closure_fit_info *info)
 {
-    if (!t || !init || !out)
+    if (!t || !init || !out || nstart < 1)
         return sl_seterr(t ? &t->err : NULL, SL_EINVAL, "tsm_binary: NULL argument");
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_binary: no frames");
@@ -384,7 +384,7 @@ int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
                 corrected_at(t, k, u1, u2, sbar, g, lv, &b[q], &b[n + q]);
             }
     int rc = closure_fit_binary_1d(t->nang, t->nf, t->ns, t->off, t->len,
-                                   t->np, b, b + n, 0, init, out, info, &t->err);
+                                   t->np, b, b + n, 0, nstart, init, out, info, &t->err);
     free(b);
     return rc;
 }

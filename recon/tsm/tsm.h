@@ -249,10 +249,12 @@ int tsm_mean_projection(tsm *t, float *proj);
 /* Bias-corrected mean bispectrum element at angle k; u2 <= u1. */
 int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im);
 /* A binary fitted to every angle's closure phases (closure.h, the 1-D
- * form), on the bias-corrected mean bispectrum, from init (binary_measure
- * on the result).  Allocates 16 bytes per stored pair for the corrected
- * copy.  SL_EDATA for an equal pair or too few strong pairs. */
-int tsm_binary(tsm *t, const binary_result *init, binary_result *out,
+ * form), on the bias-corrected mean bispectrum, from each of nstart
+ * starts init[] (binary_measure on the result, a fringe fit), the best
+ * kept.  Allocates 16 bytes per stored pair for the corrected copy.
+ * SL_EDATA when every start is an equal pair or fails, or too few strong
+ * pairs. */
+int tsm_binary(tsm *t, int nstart, const binary_result *init, binary_result *out,
                closure_fit_info *info);
 /* Transfer-function calibration: ps_ref is a point source's tsm_power
  * (same geometry, same seeing statistics); ps_target (may be NULL) the

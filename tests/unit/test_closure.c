@@ -13,6 +13,9 @@
 #include "sim/scene.h"
 #include "sim/sim.h"
 #include "tsm/tsm.h"
+#include "base/rng.h"
+#include "base/tpool.h"
+#include "spectra/closure_int.h"
 #include "tcheck.h"
 
 #include <stdlib.h>
@@ -98,7 +101,8 @@ static double pa_diff(double a, double b) { return remainder(a - b, 360.0); }
 
 /* A cophased frame's OTF is real and non-negative, so its closure phases
  * are the binary's own: the fit returns the truth to rounding (measured
- * ~1e-6 px), from the image fit's start and from the opposite sign. */
+ * ~1e-6 px), from the image fit's start, from the opposite sign, and
+ * from two starts the first of which is wrong. */
 TEST(cophased_closure_exact)
 {
     static const double seps[] = {5, 10}, dms[] = {1, 2};
@@ -114,13 +118,17 @@ TEST(cophased_closure_exact)
             int rc = img ? bispec_image(b, NULL, img) : SL_ENOMEM;
             if (rc == SL_OK)
                 rc = binary_measure(img, 96, 96, &init, NULL);
-            for (int flip = 0; rc == SL_OK && flip < 2; flip++) {
-                binary_result start = init;
-                if (flip) { /* the wrong sign: the second start finds it */
-                    start.dx_px = -init.dx_px;
-                    start.dy_px = -init.dy_px;
+            for (int flip = 0; rc == SL_OK && flip < 3; flip++) {
+                binary_result start[2] = {init, init};
+                if (flip == 1) { /* the wrong sign: the second start finds it */
+                    start[0].dx_px = -init.dx_px;
+                    start[0].dy_px = -init.dy_px;
                 }
-                rc = bispec_binary(b, &start, &cp, &info);
+                if (flip == 2) { /* a wrong start first: the right one wins */
+                    start[0].dx_px = 1.7 * init.dy_px;
+                    start[0].dy_px = -1.7 * init.dx_px;
+                }
+                rc = bispec_binary(b, flip == 2 ? 2 : 1, start, &cp, &info);
                 if (rc != SL_OK)
                     break;
                 if (fabs(cp.sep_px - sep_px) > 1e-3 ||
@@ -152,7 +160,7 @@ TEST(equal_pair_refused)
     init.sep_px = 5;
     init.flux_ratio = 1;
     init.pa_ambiguous = 1;
-    int rc = bispec_binary(b, &init, &cp, NULL);
+    int rc = bispec_binary(b, 1, &init, &cp, NULL);
     char msg[SL_ERRMSG_MAX];
     snprintf(msg, sizeof msg, "%s", bispec_errmsg(b));
     bispec_free(b);
@@ -175,7 +183,7 @@ TEST(tsm_cophased_closure)
     if (rc == SL_OK)
         rc = binary_measure(img, 96, 96, &init, NULL);
     if (rc == SL_OK)
-        rc = tsm_binary(ts, &init, &cp, &info);
+        rc = tsm_binary(ts, 1, &init, &cp, &info);
     char msg[SL_ERRMSG_MAX];
     snprintf(msg, sizeof msg, "%s", tsm_errmsg(ts));
     free(img);
@@ -246,5 +254,86 @@ TEST(turbulent_corner_within_bounds)
     CHECK(!bad, "%s", msg);
 }
 
+/* A graph of nf targets with per (< 65536) triples each, moduli spread over four
+ * decades (log-uniform), and its legs, frequencies and sums. */
+typedef struct toy_graph {
+    phasor_graph g;
+    uint16_t *tk;
+    int32_t *ubase, *doff, *dleg, *lut, *fp, *fq;
+    int64_t *tstart;
+    unsigned char *seed;
+    double *acc;
+} toy_graph;
+
+static int toy_new(toy_graph *t, int nf, int per)
+{
+    size_t nt = (size_t)nf * per;
+    memset(t, 0, sizeof *t);
+    t->tk = malloc(nt * sizeof *t->tk), t->doff = calloc(per, sizeof *t->doff);
+    t->dleg = calloc(per, sizeof *t->dleg), t->acc = malloc(2 * nt * sizeof *t->acc);
+    t->ubase = malloc(nf * sizeof *t->ubase), t->lut = malloc(nf * sizeof *t->lut);
+    t->fp = malloc(nf * sizeof *t->fp), t->fq = malloc(nf * sizeof *t->fq);
+    t->tstart = malloc((nf + 1) * sizeof *t->tstart), t->seed = calloc(nf, 1);
+    if (!t->tk || !t->doff || !t->dleg || !t->acc || !t->ubase || !t->lut || !t->fp ||
+        !t->fq || !t->tstart || !t->seed)
+        return SL_ENOMEM;
+    rng r;
+    rng_init(&r, 11, 0);
+    for (int j = 0; j <= nf; j++)
+        t->tstart[j] = (int64_t)j * per;
+    for (int j = 0; j < nf; j++)
+        t->ubase[j] = t->lut[j] = j, t->fp[j] = j % 17 - 8, t->fq[j] = j / 17;
+    for (size_t i = 0; i < nt; i++) {
+        double m = pow(10.0, -4.0 * rng_uniform(&r)), a = 2 * M_PI * rng_uniform(&r);
+        t->tk[i] = (uint16_t)(i % per), t->acc[2 * i] = m * cos(a), t->acc[2 * i + 1] = m * sin(a);
+    }
+    t->g = (phasor_graph){.nfreq = nf, .tstart = t->tstart, .tk = t->tk, .ubase = t->ubase,
+                          .doff = t->doff, .dleg = t->dleg, .lut = t->lut, .seed = t->seed,
+                          .accd = t->acc, .nframes = 1, .weight = PHASOR_WEIGHT_MOD};
+    return SL_OK;
+}
+
+static void toy_free(toy_graph *t)
+{
+    free(t->tk), free(t->doff), free(t->dleg), free(t->acc), free(t->ubase);
+    free(t->lut), free(t->fp), free(t->fq), free(t->tstart), free(t->seed);
+}
+
+/* The closure fit's choice of triples (closure_select.c): past the cap,
+ * the strongest, at most the cap and within a histogram bin of it; the
+ * same array on one thread and on two. */
+TEST(kept_triples_strongest_within_cap)
+{
+    toy_graph tg;
+    CHECK(toy_new(&tg, 400, 50) == SL_OK, "out of memory");
+    sl_err e = {0};
+    kept *k1 = NULL, *k2 = NULL;
+    long n1 = 0, n2 = 0, cap = 3000;
+    tpool *pool = tpool_new(2, &e);
+    int rc = closure_keep(&tg.g, tg.fp, tg.fq, 1e-6, cap, &k1, &n1, &e);
+    tg.g.pool = pool;
+    if (rc == SL_OK && pool)
+        rc = closure_keep(&tg.g, tg.fp, tg.fq, 1e-6, cap, &k2, &n2, &e);
+    double weakest = INFINITY, strongest_left = 0;
+    int in_order = 1;
+    for (long i = 0; rc == SL_OK && i < n1; i++)
+        weakest = fmin(weakest, k1[i].wt), in_order &= i == 0 || k1[i].j >= k1[i - 1].j;
+    for (int j = 1; j < tg.g.nfreq; j++)
+        for (int64_t i = tg.tstart[j]; i < tg.tstart[j + 1]; i++) {
+            double m = hypot(tg.acc[2 * i], tg.acc[2 * i + 1]);
+            strongest_left = m < weakest ? fmax(strongest_left, m) : strongest_left;
+        }
+    int same = rc == SL_OK && n1 == n2 && !memcmp(k1, k2, sizeof *k1 * (size_t)n1);
+    free(k1), free(k2);
+    tpool_free(pool);
+    toy_free(&tg);
+    CHECK(rc == SL_OK && pool, "%s", e.msg);
+    CHECK(n1 <= cap && n1 > cap * 9 / 10, "%ld triples kept, cap %ld", n1, cap);
+    CHECK(strongest_left <= weakest && in_order, "a triple of |B| %g left out, %g kept",
+          strongest_left, weakest);
+    CHECK(same, "two threads kept %ld triples, one %ld (or others)", n2, n1);
+}
+
 TC_MAIN(TC_CASE(cophased_closure_exact), TC_CASE(equal_pair_refused),
-        TC_CASE(tsm_cophased_closure), TC_CASE(turbulent_corner_within_bounds))
+        TC_CASE(tsm_cophased_closure), TC_CASE(turbulent_corner_within_bounds),
+        TC_CASE(kept_triples_strongest_within_cap))

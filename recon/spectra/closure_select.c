@@ -11,7 +11,7 @@
  * any thread count.
  */
 #include "closure_int.h"
-#include "base/tpool.h"
+#include "phasor_int.h"
 
 #include <math.h>
 #include <stdatomic.h>
@@ -90,9 +90,7 @@ static void keep_job(void *ctx, int tid, int nthr)
         for (int j = block_start(g->nfreq, k); j < block_start(g->nfreq, k + 1); j++)
             for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
                 int l1, l2;
-                double br, bi, w;
-                phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
-                double m = sqrt(br * br + bi * bi);
+                double br, bi, w, m = phasor_triple_mod(g, j, t, &l1, &l2, &br, &bi, &w);
                 if (c->pass == PASS_MAX) {
                     mx = m > mx ? m : mx;
                     continue;

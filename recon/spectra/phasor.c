@@ -17,50 +17,7 @@ size_t phasor_work_doubles(int nfreq) { return 6 * (size_t)(nfreq > 0 ? nfreq : 
 void phasor_triple(const phasor_graph *g, int j, int64_t t, int *l1, int *l2,
                    double *bre, double *bim, double *wt)
 {
-    int k = g->tk[t];
-    int a = g->lut[g->ubase[j] - g->doff[k]], b = g->dleg[k];
-    double inv = g->nframes > 0 ? 1.0 / g->nframes : 0.0;
-    double re, im;
-    if (g->accd) {
-        re = g->accd[2 * t] * inv;
-        im = g->accd[2 * t + 1] * inv;
-    } else {
-        re = g->accf[2 * t] * inv;
-        im = g->accf[2 * t + 1] * inv;
-    }
-    double mre = re, mim = im; /* raw mean, for the variance */
-    if (g->xsum) {
-        /* X(-u) = conj X(u); the target enters conjugated. */
-        int n = g->nfreq;
-        int h1 = a % n, h2 = b % n;
-        double x1r = g->xsum[2 * h1], x1i = g->xsum[2 * h1 + 1];
-        double x2r = g->xsum[2 * h2], x2i = g->xsum[2 * h2 + 1];
-        if (a >= n)
-            x1i = -x1i;
-        if (b >= n)
-            x2i = -x2i;
-        double x3r = g->xsum[2 * j], x3i = -g->xsum[2 * j + 1];
-        re += g->bconst - g->xscale * (x1r + x2r + x3r);
-        im -= g->xscale * (x1i + x2i + x3i);
-    }
-    double mod = sqrt(re * re + im * im); /* not hypot: 10x slower here */
-    double w = mod;
-    if (g->weight == PHASOR_WEIGHT_UNIT) {
-        w = mod > 0 ? 1.0 : 0.0;
-    } else if (g->weight == PHASOR_WEIGHT_SNR && g->nframes > 1 &&
-               (g->acc2d || g->acc2f)) {
-        double m2 = (g->acc2d ? g->acc2d[t] : g->acc2f[t]) * inv;
-        double var = m2 - (mre * mre + mim * mim);
-        double se = sqrt(fmax(var, 0.0) * inv);
-        /* A triple with no scatter (noiseless data) gets the weight of
-         * one with a standard error of 1e-6 of its modulus. */
-        w = se > 1e-6 * mod ? mod / se : (mod > 0 ? 1e6 : 0.0);
-    }
-    *l1 = a;
-    *l2 = b;
-    *bre = re;
-    *bim = im;
-    *wt = w;
+    phasor_triple_mod(g, j, t, l1, l2, bre, bim, wt);
 }
 
 int phasor_solve(const phasor_graph *g, int iters, double *work, double *phi,

@@ -92,11 +92,12 @@ static void prep(const phasor_graph *g, const recur_state *rs, int j0, int j1, i
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
             double br, bi, w;
-            phasor_triple(g, j, t, &l1, &l2, &br, &bi, &w);
+            double mod = phasor_triple_mod(g, j, t, &l1, &l2, &br, &bi, &w);
             if (!(w > 0))
                 continue;
-            double mod = sqrt(br * br + bi * bi); /* not hypot: 10x slower */
-            prepped q = {l1, l2, br, bi, mod > 0 ? w / mod : 0, mod};
+            /* |B| weights: w / mod is 1 (exactly), without the division */
+            double s = !(mod > 0) ? 0 : g->weight == PHASOR_WEIGHT_MOD ? 1.0 : w / mod;
+            prepped q = {l1, l2, br, bi, s, mod};
             int a1 = l1 < n ? l1 : l1 - n, a2 = l2 < n ? l2 : l2 - n;
             if (a1 >= cut || a2 >= cut)
                 late[e.nlate++] = q;

@@ -84,8 +84,7 @@ static double usable(const refine_ctx *c, int j, int64_t t, strong *q)
 {
     int n = c->g->nfreq, l1, l2;
     double br, bi, w;
-    phasor_triple(c->g, j, t, &l1, &l2, &br, &bi, &w);
-    double mod = sqrt(br * br + bi * bi);
+    double mod = phasor_triple_mod(c->g, j, t, &l1, &l2, &br, &bi, &w);
     if (!c->known[l1 % n] || !c->known[l2 % n] || !(w > 0) || !(mod > 0))
         return 0;
     *q = (strong){l1, l2, (float)(w * br / mod), (float)(w * bi / mod)};

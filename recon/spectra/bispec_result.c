@@ -102,7 +102,7 @@ int bispec_image(bispec *b, const double *modulus, float *img)
 int bispec_binary(bispec *b, int nstart, const binary_result *init, binary_result *out,
                   closure_fit_info *info)
 {
-    if (!b || !init || !out || nstart < 1)
+    if (!b || !init || !out)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_binary: NULL argument");
     if (!b->n)

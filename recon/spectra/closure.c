@@ -372,15 +372,14 @@ static int fitted_already(const binary_result *init, int s, const binary_result 
 /* The fit from each start that is not an equal pair nor at a binary
  * already fitted; the smaller weighted rms residual wins.  kv: 6 nf
  * doubles, the k-vectors first. */
-#define MAX_STARTS 8
 static int fit_starts(const kept *t, long n, double *kv, int nf, double max_sep, tpool *pool,
                       int nstart, const binary_result *init, binary_result *out,
                       closure_fit_info *info, sl_err *err)
 {
-    int rc = SL_EDATA, found = 0, ok[MAX_STARTS] = {0};
-    binary_result fits[MAX_STARTS];
+    int rc = SL_EDATA, found = 0, ok[CLOSURE_MAX_STARTS] = {0};
+    binary_result fits[CLOSURE_MAX_STARTS];
     double best = INFINITY;
-    for (int s = 0; s < nstart && s < MAX_STARTS; s++) {
+    for (int s = 0; s < nstart; s++) {
         binary_result r;
         closure_fit_info fi;
         if (is_equal_pair(&init[s])) {
@@ -402,17 +401,28 @@ static int fit_starts(const kept *t, long n, double *kv, int nf, double max_sep,
     return found ? SL_OK : rc;
 }
 
+/* SL_OK when some of the nstart starts (1..CLOSURE_MAX_STARTS) is not an
+ * equal pair, before the triples are chosen for nothing. */
+static int check_starts(int nstart, const binary_result *init, sl_err *err)
+{
+    if (nstart < 1 || nstart > CLOSURE_MAX_STARTS)
+        return sl_seterr(err, SL_EINVAL, "closure fit: %d starts (want 1 to %d)", nstart,
+                         CLOSURE_MAX_STARTS);
+    for (int s = 0; s < nstart; s++)
+        if (!is_equal_pair(&init[s]))
+            return SL_OK;
+    return refuse_equal(&init[nstart - 1], err);
+}
+
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp, const int32_t *fq, int w,
                        int h, double rel_min, int nstart, const binary_result *init,
                        binary_result *out, closure_fit_info *info, sl_err *err)
 {
-    if (!g || !fp || !fq || !init || !out || nstart < 1 || g->nfreq < 2 || w < 2 || h < 2)
+    if (!g || !fp || !fq || !init || !out || g->nfreq < 2 || w < 2 || h < 2)
         return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
-    int nf = g->nfreq, s = 0, rc;
-    while (s < nstart && is_equal_pair(&init[s]))
-        s++;
-    if (s == nstart)
-        return refuse_equal(&init[nstart - 1], err);
+    int nf = g->nfreq, rc = check_starts(nstart, init, err);
+    if (rc != SL_OK)
+        return rc;
     kept *t = NULL;
     long n = 0;
     double *k = malloc((size_t)nf * 6 * sizeof *k);
@@ -437,14 +447,11 @@ int closure_fit_binary_1d(int nang, int nf, int nproj, const int *off, const int
                           closure_fit_info *info, sl_err *err)
 {
     if (nang < 1 || nf < 3 || nproj < 2 || !off || !len || np < 1 || !bre || !bim || !init ||
-        !out || nstart < 1)
+        !out)
         return sl_seterr(err, SL_EINVAL, "closure fit: bad argument");
-    int s = 0;
-    while (s < nstart && is_equal_pair(&init[s]))
-        s++;
-    if (s == nstart)
-        return refuse_equal(&init[nstart - 1], err);
-    int nt = nang * nf, rc;
+    int nt = nang * nf, rc = check_starts(nstart, init, err);
+    if (rc != SL_OK)
+        return rc;
     kept *t = NULL;
     long n = 0;
     double *k = malloc((size_t)nt * 6 * sizeof *k);

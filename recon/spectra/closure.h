@@ -67,6 +67,7 @@
  * frequencies, not triples (Errors, below), and the capped fit's errors
  * grow where it sees fewer of them. */
 #define CLOSURE_MAX_TRIPLES (1L << 21)
+#define CLOSURE_MAX_STARTS 8 /* starts of one fit (closure_fit_binary) */
 
 typedef struct closure_fit_info {
     long ntriples;           /* triples fitted */
@@ -85,7 +86,7 @@ typedef struct closure_fit_info {
 
 /* Fit the binary to g's triples (frequencies fp, fq of g's nfreq, w x h
  * frame) from each of nstart starts init[] (fits of the same data: their
- * d and flux_ratio; x1 is copied; at most 8): the triples are chosen
+ * d and flux_ratio; x1 is copied; 1 to CLOSURE_MAX_STARTS): the triples are chosen
  * once, and the start whose fit leaves the smaller weighted rms residual
  * wins.  A start within 0.5 px of a binary fitted from an earlier one
  * (or of its mirror) is not fitted again: it would end in the same
@@ -96,7 +97,7 @@ typedef struct closure_fit_info {
  * frequencies, fit_rms: NAN); info (may be NULL) what was fitted.
  * SL_EDATA when every start is an equal pair or leaves the field, or
  * fewer than 16 triples are kept (the message: the last start's reason),
- * SL_ENOMEM. */
+ * SL_EINVAL for a start count out of range, SL_ENOMEM. */
 int closure_fit_binary(const phasor_graph *g, const int32_t *fp,
                        const int32_t *fq, int w, int h, double rel_min,
                        int nstart, const binary_result *init, binary_result *out,

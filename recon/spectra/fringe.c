@@ -362,14 +362,21 @@ static void describe(double t[3], double cov[3][3], double chi, double chi0,
 /* The samples at frequencies (p, q) with p and q multiples of m (frame
  * w x h) into *sub, ring-interpolated over themselves: the grid search's
  * share of a large frame.  SL_ENOMEM. */
+static int on_grid(const samples *s, int i, int m, int w, int h)
+{
+    return lround(s->kx[i] * w) % m == 0 && lround(s->ky[i] * h) % m == 0;
+}
+
 static int decimated(const samples *s, int m, int w, int h, samples *sub)
 {
     int n = 0;
-    if (samples_alloc(sub, s->n, s->nbin) != SL_OK)
+    for (int i = 0; i < s->n; i++)
+        n += on_grid(s, i, m, w, h);
+    if (samples_alloc(sub, n > 0 ? n : 1, s->nbin) != SL_OK)
         return SL_ENOMEM;
+    n = 0;
     for (int i = 0; i < s->n; i++) {
-        long p = lround(s->kx[i] * w), q = lround(s->ky[i] * h);
-        if (p % m || q % m)
+        if (!on_grid(s, i, m, w, h))
             continue;
         sub->kx[n] = s->kx[i], sub->ky[n] = s->ky[i], sub->q[n] = s->q[i];
         sub->wt[n] = s->wt[i], sub->bin[n] = s->bin[i];

@@ -41,7 +41,7 @@
  * passes over every m-th frequency along each axis, m = L / (8 max_sep),
  * at least 8 per fringe of the largest separation (1024^2: 5.5 s ->
  * ~0.1 s); the fit that follows uses every one.  Allocates 7 doubles per
- * sample (and as many again for the grid's share).
+ * sample (and per sample of the grid's share).
  */
 #ifndef SL_FRINGE_H
 #define SL_FRINGE_H

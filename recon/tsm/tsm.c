@@ -366,7 +366,7 @@ int tsm_bispectrum(tsm *t, int k, int u1, int u2, double *re, double *im)
 int tsm_binary(tsm *t, int nstart, const binary_result *init, binary_result *out,
                closure_fit_info *info)
 {
-    if (!t || !init || !out || nstart < 1)
+    if (!t || !init || !out)
         return sl_seterr(t ? &t->err : NULL, SL_EINVAL, "tsm_binary: NULL argument");
     if (t->nframes == 0)
         return sl_seterr(&t->err, SL_EDATA, "tsm_binary: no frames");

@@ -147,7 +147,8 @@ TEST(cophased_closure_exact)
         }
 }
 
-/* Closure phases cannot tell d from -d for an equal pair: refused, named. */
+/* Closure phases cannot tell d from -d for an equal pair: refused, named;
+ * so are more starts than a fit takes. */
 TEST(equal_pair_refused)
 {
     bench_case c = {64, 1, 0, 8, 30, 1, 1};
@@ -161,10 +162,15 @@ TEST(equal_pair_refused)
     init.flux_ratio = 1;
     init.pa_ambiguous = 1;
     int rc = bispec_binary(b, 1, &init, &cp, NULL);
-    char msg[SL_ERRMSG_MAX];
+    char msg[SL_ERRMSG_MAX], many[SL_ERRMSG_MAX];
     snprintf(msg, sizeof msg, "%s", bispec_errmsg(b));
+    binary_result starts[CLOSURE_MAX_STARTS + 1] = {{0}};
+    int rc_many = bispec_binary(b, CLOSURE_MAX_STARTS + 1, starts, &cp, NULL);
+    snprintf(many, sizeof many, "%s", bispec_errmsg(b));
     bispec_free(b);
     CHECK(rc == SL_EDATA && strstr(msg, "equal pair"), "rc %d: %s", rc, msg);
+    CHECK(rc_many == SL_EINVAL && strstr(many, "starts"), "%d starts: rc %d: %s",
+          CLOSURE_MAX_STARTS + 1, rc_many, many);
 }
 
 /* TSM's 1-D closure phases (Fourier slices of a cophased frame): the

@@ -307,7 +307,10 @@ static int run_direct(stream *s, stream *ref, const pipeline_opts *o,
         goto free_all;
     }
     rep->stage_s[PIPE_STAGE_PLAN] = now_s() - t_plan;
-    if ((rc = stream_feed(s, bs_add, b, "bispectrum", err)) != SL_OK ||
+    s->ahead_want = bispec_batch(b); /* its add returns once a batch */
+    rc = stream_feed(s, bs_add, b, "bispectrum", err);
+    s->ahead_want = 0;
+    if (rc != SL_OK ||
         (rc = stream_share_bispec(s, b, err)) != SL_OK)
         goto free_all;
     double t_solve = now_s(), k_fed = bispec_kernel_s(b);

@@ -10,20 +10,35 @@
  * scale, prep_frame), so the frames, and every sum made from them, are
  * the same bits; only when the work happens changes.
  *
- * Memory: AHEAD_SLOTS frames.  Threads: one more than the caller's, for
- * the length of the pass; the pipeline uses it only when it was given
- * more than one thread.
+ * The ring is as long as the estimator asks (stream.ahead_want), within
+ * AHEAD_MIN..AHEAD_MAX frames and AHEAD_BYTES: the direct method's add
+ * returns only every batch of frames (up to 128), after the triple
+ * kernel has held both cores for a batch's time.  A ring of 4 filled in
+ * the first moments of that and the reader then waited, so the caller
+ * waited for the rest of the next batch with one core idle: 0.17 s of a
+ * 512^2 x 400 run on 2 threads.  A ring a batch long is read while the
+ * kernel runs (the wait fell to 0.02-0.08 s).  The ring is the
+ * stream's, kept for its later passes: fresh pages would cost their
+ * first touch on every pass (16 MB at 200^2 x 100).
+ *
+ * Memory: the ring (at most AHEAD_BYTES beyond AHEAD_MIN frames), until
+ * stream_close.  Threads: one more than the caller's, for the length of
+ * the pass; the pipeline uses it only when it was given more than one
+ * thread.
  */
 #include <pthread.h>
 #include <stdlib.h>
 
 #include "pipeline_int.h"
 
-#define AHEAD_SLOTS 4
+#define AHEAD_BYTES ((size_t)32 << 20)
+#define AHEAD_MIN 4
+#define AHEAD_MAX 128
 
 typedef struct ahead {
     stream *s;
-    float *slot[AHEAD_SLOTS];
+    float *ring;            /* nslot frames of w * h */
+    int nslot, k0, k1;      /* ring size; frames [k0, k1) */
     int head, count;        /* next slot to fill; slots filled, not added */
     int done, stop, rc;     /* reader finished (rc: SL_EEND at the end) */
     pthread_mutex_t mu;
@@ -36,18 +51,18 @@ static void *ahead_run(void *arg)
     ahead *a = arg;
     stream *s = a->s;
     size_t npx = (size_t)s->w * s->h;
-    int rc = cube_reader_seek(s->rd, s->k0);
-    for (int k = s->k0; rc == SL_OK; k++) {
+    int rc = cube_reader_seek(s->rd, a->k0);
+    for (int k = a->k0; rc == SL_OK; k++) {
         pthread_mutex_lock(&a->mu);
-        while (a->count == AHEAD_SLOTS && !a->stop)
+        while (a->count == a->nslot && !a->stop)
             pthread_cond_wait(&a->cv, &a->mu);
         int i = a->head, stop = a->stop;
         pthread_mutex_unlock(&a->mu);
-        if (stop || k >= s->k1) {
+        if (stop || k >= a->k1) {
             rc = SL_EEND;
             break;
         }
-        float *f = a->slot[i];
+        float *f = a->ring + (size_t)i * s->w * s->h;
         if ((rc = cube_reader_next(s->rd, f)) != SL_OK)
             break;
         if (s->scale != 1.0)
@@ -56,7 +71,7 @@ static void *ahead_run(void *arg)
         if (s->pp)
             prep_frame(s->pp, f, NULL);
         pthread_mutex_lock(&a->mu);
-        a->head = (i + 1) % AHEAD_SLOTS;
+        a->head = (i + 1) % a->nslot;
         a->count++;
         pthread_cond_signal(&a->cv);
         pthread_mutex_unlock(&a->mu);
@@ -73,7 +88,7 @@ static void *ahead_run(void *arg)
  * add stops the reader.  SL_OK, the add's code, or the reader's. */
 static int ahead_consume(ahead *a, add_fn add, void *h, const char *what, sl_err *err)
 {
-    int k = a->s->k0, tail = 0;
+    int k = a->k0, tail = 0;
     for (;; k++) {
         pthread_mutex_lock(&a->mu);
         while (a->count == 0 && !a->done)
@@ -82,9 +97,9 @@ static int ahead_consume(ahead *a, add_fn add, void *h, const char *what, sl_err
         pthread_mutex_unlock(&a->mu);
         if (!have)
             return SL_OK;
-        int rc = add ? add(h, a->slot[tail]) : SL_OK;
+        int rc = add ? add(h, a->ring + (size_t)tail * a->s->w * a->s->h) : SL_OK;
         pthread_mutex_lock(&a->mu);
-        tail = (tail + 1) % AHEAD_SLOTS;
+        tail = (tail + 1) % a->nslot;
         a->count--;
         a->stop = rc != SL_OK;
         pthread_cond_signal(&a->cv);
@@ -94,23 +109,41 @@ static int ahead_consume(ahead *a, add_fn add, void *h, const char *what, sl_err
     }
 }
 
-int stream_feed_ahead(stream *s, add_fn add, void *h, const char *what, sl_err *err,
-                      int *ran)
+/* The stream's ring, grown to the slots this pass wants when it can be;
+ * the number of slots to use (0: none to be had). */
+static int ring_slots(stream *s, int k0, int k1)
 {
-    ahead a = {.s = s};
+    size_t bytes = sizeof(float) * s->w * s->h, fit = AHEAD_BYTES / bytes;
+    int want = s->ahead_want > AHEAD_MIN ? s->ahead_want : AHEAD_MIN;
+    int cap = fit < AHEAD_MIN ? AHEAD_MIN : fit > AHEAD_MAX ? AHEAD_MAX : (int)fit;
+    want = want < cap ? want : cap;
+    if (k1 - k0 < want) /* never more slots than frames */
+        want = k1 - k0 > 1 ? k1 - k0 : 1;
+    if (s->ring_slots >= want)
+        return want;
+    float *r = malloc(bytes * want);
+    if (!r)
+        return s->ring_slots; /* the ring there is, if any */
+    free(s->ring);
+    s->ring = r;
+    s->ring_slots = want;
+    return want;
+}
+
+int stream_feed_ahead(stream *s, int k0, int k1, add_fn add, void *h, const char *what,
+                      sl_err *err, int *ran)
+{
+    ahead a = {.s = s, .k0 = k0, .k1 = k1, .ring = NULL};
     *ran = 0;
-    size_t bytes = sizeof(float) * s->w * s->h;
-    int rc = SL_OK, i = 0;
-    for (; i < AHEAD_SLOTS; i++)
-        if (!(a.slot[i] = malloc(bytes)))
-            goto free_slots; /* no memory for the ring: read serially */
+    if (!(a.nslot = ring_slots(s, k0, k1)))
+        return SL_OK; /* no memory for a ring: read serially */
+    a.ring = s->ring;
     pthread_t th;
     pthread_mutex_init(&a.mu, NULL);
     pthread_cond_init(&a.cv, NULL);
-    if (pthread_create(&th, NULL, ahead_run, &a) != 0) {
-        rc = SL_OK; /* no thread: the caller reads serially instead */
-        goto destroy_sync;
-    }
+    int rc = SL_OK;
+    if (pthread_create(&th, NULL, ahead_run, &a) != 0)
+        goto destroy_sync; /* no thread: the caller reads serially instead */
     *ran = 1;
     rc = ahead_consume(&a, add, h, what, err);
     pthread_join(th, NULL);
@@ -119,8 +152,5 @@ int stream_feed_ahead(stream *s, add_fn add, void *h, const char *what, sl_err *
 destroy_sync:
     pthread_cond_destroy(&a.cv);
     pthread_mutex_destroy(&a.mu);
-free_slots:
-    while (i-- > 0)
-        free(a.slot[i]);
     return rc;
 }

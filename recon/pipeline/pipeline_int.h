@@ -54,6 +54,10 @@ typedef struct stream {
     double read_s, frame_s;
     int ahead;            /* read ahead on a thread of its own (more than
                              one thread allowed) */
+    int ahead_want;       /* frames the next pass's add may take between
+                             returns (0: a few); pipeline_ahead.c */
+    float *ring;          /* the read-ahead ring, ring_slots frames */
+    int ring_slots;
     int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
@@ -74,11 +78,12 @@ int stream_next(stream *s);
 int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* CLOCK_MONOTONIC in seconds. */
 double stream_now_s(void);
-/* A pass over frames [k0, k1) whole, read and cleaned on a thread of its
- * own while add runs (pipeline_ahead.c); s->frame is not used.  *ran 0 (and SL_OK) when there was no thread or ring to be had:
- * the caller reads serially. */
-int stream_feed_ahead(stream *s, add_fn add, void *h, const char *what, sl_err *err,
-                      int *ran);
+/* A pass over frames [k0, k1) whole (s's range, or the first frames for
+ * the detector's learning), read and cleaned on a thread of its own while
+ * add runs (pipeline_ahead.c); s->frame is not used.  *ran 0 (and SL_OK)
+ * when there was no thread or ring to be had: the caller reads serially. */
+int stream_feed_ahead(stream *s, int k0, int k1, add_fn add, void *h, const char *what,
+                      sl_err *err, int *ran);
 /* Expect passes more feeds of every frame (for the progress estimate). */
 void stream_expect_passes(stream *s, int passes);
 

@@ -38,6 +38,7 @@
 #include <stdint.h>
 
 #include "status.h"
+#include "base/tpool.h"
 
 typedef struct rawstats rawstats;
 
@@ -72,8 +73,11 @@ int rawstats_new(rawstats **out, int w, int h, double code_max, sl_err *err);
 void rawstats_free(rawstats *r);
 const char *rawstats_errmsg(const rawstats *r);
 
-/* Learn from one raw frame (NaN/Inf pixels are skipped). */
+/* Learn from one raw frame (NaN/Inf pixels are skipped).  With a pool
+ * (rawstats_set_pool, kept by reference; NULL: none) its bands of rows
+ * are shared by the pool's threads: the same sums on any thread count. */
 int rawstats_add(rawstats *r, const float *raw);
+void rawstats_set_pool(rawstats *r, tpool *pool);
 int rawstats_nframes(const rawstats *r);
 /* Decide (see above); res may be NULL.  Idempotent. */
 int rawstats_finish(rawstats *r, rawstats_result *res);

@@ -7,6 +7,7 @@
 
 #include "pipeline/rawstats.h"
 #include "base/rng.h"
+#include "base/tpool.h"
 #include "tcheck.h"
 
 #define W 64
@@ -157,6 +158,68 @@ TEST(flat_topped_peaks_and_the_data_step)
     rawstats_free(rs);
 }
 
+/* 32 camera frames with stuck pixels, a few NaN pixels, and a peak
+ * flat-topped only across rows 2 and 3 (where the 16 bands of rows part,
+ * H = 56) and rows 13 and 14, each in 2 frames, learnt on pool (NULL:
+ * the caller alone). */
+static rawstats *learn_banded(tpool *pool, rawstats_result *res)
+{
+    rawstats *rs = NULL;
+    if (rawstats_new(&rs, W, H, 65535, NULL) != SL_OK)
+        return NULL;
+    rawstats_set_pool(rs, pool);
+    float f[W * H];
+    for (int k = 0; k < 32; k++) {
+        camera_frame(f, k, 34, 26, 2e4, 4);
+        for (int i = 0; i < W * H; i++)
+            f[i] = fminf(f[i], 3000);
+        f[4 * W + 3] = 2500, f[50 * W + 60] = 0;   /* stuck */
+        if (k % 5 == 1)
+            f[(k % H) * W + k % W] = NAN;
+        if (k == 3 || k == 9)
+            f[2 * W + 20] = f[3 * W + 20] = 3000;
+        if (k == 17 || k == 20)
+            f[13 * W + 40] = f[14 * W + 40] = 3000;
+        rawstats_add(rs, f);
+    }
+    rawstats_finish(rs, res);
+    rawstats_set_pool(rs, NULL);
+    return rs;
+}
+
+/* The statistics on 2 and 3 threads are those of one, to the bit, and a
+ * flat top split between two bands of rows is still found. */
+TEST(a_pool_gives_the_same_result)
+{
+    rawstats_result r1, rn;
+    rawstats *one = learn_banded(NULL, &r1);
+    CHECK(one, "rawstats_new");
+    CHECK(r1.sat_source == RAWSTATS_SAT_FLAT && r1.sat_level == 3000,
+          "saturation %g (source %d), want the flat top 3000", r1.sat_level, r1.sat_source);
+    CHECK(r1.nstuck == 2, "%d stuck pixels, want 2", r1.nstuck);
+    for (int n = 2; n <= 3; n++) {
+        tpool *pool = tpool_new(n, NULL);
+        CHECK(pool, "tpool_new(%d)", n);
+        rawstats *rs = learn_banded(pool, &rn);
+        tpool_free(pool);
+        CHECK(rs, "rawstats_new");
+        CHECK(rn.nstuck == r1.nstuck && rn.nhot == r1.nhot && rn.ndead == r1.ndead &&
+                  rn.sat_level == r1.sat_level && rn.sat_source == r1.sat_source &&
+                  rn.quantum == r1.quantum && rn.integer_valued == r1.integer_valued &&
+                  rn.nsky == r1.nsky && rn.sky_level == r1.sky_level &&
+                  rn.sky_rms == r1.sky_rms && rn.cx_px == r1.cx_px && rn.cy_px == r1.cy_px &&
+                  rn.cloud_radius_px == r1.cloud_radius_px,
+              "%d threads: sky %.9g rms %.9g cloud (%.9g, %.9g), one thread %.9g %.9g (%.9g, %.9g)",
+              n, rn.sky_level, rn.sky_rms, rn.cx_px, rn.cy_px, r1.sky_level, r1.sky_rms,
+              r1.cx_px, r1.cy_px);
+        CHECK(memcmp(rawstats_badmap(rs), rawstats_badmap(one), W * H) == 0 &&
+                  memcmp(rawstats_skymask(rs), rawstats_skymask(one), W * H) == 0,
+              "%d threads: other bad pixels or sky", n);
+        rawstats_free(rs);
+    }
+    rawstats_free(one);
+}
+
 TEST(bad_arguments_are_named)
 {
     rawstats *rs = NULL;
@@ -168,4 +231,5 @@ TEST(bad_arguments_are_named)
 
 TC_MAIN(TC_CASE(stuck_hot_and_dead_pixels_are_found_and_nothing_else),
         TC_CASE(a_warm_pixel_with_noise_is_hot), TC_CASE(an_undersampled_star_is_never_a_bad_pixel),
-        TC_CASE(flat_topped_peaks_and_the_data_step), TC_CASE(bad_arguments_are_named))
+        TC_CASE(flat_topped_peaks_and_the_data_step), TC_CASE(a_pool_gives_the_same_result),
+        TC_CASE(bad_arguments_are_named))

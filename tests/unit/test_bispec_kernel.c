@@ -142,9 +142,10 @@ TEST(bits_equal_on_any_thread_count)
 /* The phases (recursion pipelined over threads, then the refinement)
  * equal bit for bit on 1, 2 and 5 threads: random frames, whose closure
  * misfit is large, so the refinement runs too. */
-TEST(phases_equal_on_any_thread_count)
+/* The phases of nfr random n x n frames on 1, 2 and 5 threads. */
+static void phases_equal_at(tc *t, int n)
 {
-    int n = 48, nfr = 40;
+    int nfr = 40;
     float *fr = random_frames(n, nfr, 23);
     double *ref = NULL;
     static const int thr[] = {1, 2, 5};
@@ -165,12 +166,17 @@ TEST(phases_equal_on_any_thread_count)
         }
         int same = memcmp(ph, ref, (size_t)n * n * sizeof *ph) == 0;
         free(ph);
-        CHECK(same, "%d threads: phases differ from 1 thread", thr[i]);
+        CHECK(same, "%dx%d, %d threads: phases differ from 1 thread", n, n, thr[i]);
     }
     free(ref);
     free(fr);
 }
 
+TEST(phases_equal_on_any_thread_count)
+{
+    for (int n = 48; n <= 96; n += 48) /* 3 and 11 of the recursion's blocks */
+        phases_equal_at(t, n);
+}
 /* The float kernel against the definition in double: for every stored
  * triple, |acc - sum_f B_f| <= eps sum_f |B_f|.  The kernel's own share
  * (products and the batch's tree sum in float) is ~(log2 kb + 4) 2^-24 =

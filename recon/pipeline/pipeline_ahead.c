@@ -45,6 +45,12 @@ typedef struct ahead {
     pthread_cond_t cv;
 } ahead;
 
+/* Slot i of the ring. */
+static float *slot(const ahead *a, int i)
+{
+    return a->ring + (size_t)i * a->s->w * a->s->h;
+}
+
 /* The reader: frames k0..k1-1 into the ring, in order. */
 static void *ahead_run(void *arg)
 {
@@ -62,7 +68,7 @@ static void *ahead_run(void *arg)
             rc = SL_EEND;
             break;
         }
-        float *f = a->ring + (size_t)i * s->w * s->h;
+        float *f = slot(a, i);
         if ((rc = cube_reader_next(s->rd, f)) != SL_OK)
             break;
         if (s->scale != 1.0)
@@ -97,7 +103,7 @@ static int ahead_consume(ahead *a, add_fn add, void *h, const char *what, sl_err
         pthread_mutex_unlock(&a->mu);
         if (!have)
             return SL_OK;
-        int rc = add ? add(h, a->ring + (size_t)tail * a->s->w * a->s->h) : SL_OK;
+        int rc = add ? add(h, slot(a, tail)) : SL_OK;
         pthread_mutex_lock(&a->mu);
         tail = (tail + 1) % a->nslot;
         a->count--;

@@ -126,9 +126,11 @@ static int learn_detector(stream *s, const pipeline_opts *o, rawstats **rs,
     for (int k = 0; !ran && k < want && (rc = stream_next(s)) == SL_OK; k++)
         rawstats_add(*rs, s->frame);
     cube_reader_rewind(s->rd);
-    if (!ran && rc != SL_OK && rc != SL_EEND)
+    if (!ran && rc == SL_EEND) /* fewer frames than wanted */
+        rc = SL_OK;
+    else if (!ran && rc != SL_OK) /* the ahead pass set its own message */
         rc = sl_seterr(err, rc, "%s", cube_reader_errmsg(s->rd));
-    else if ((!ran || rc == SL_OK) && (rc = rawstats_finish(*rs, &s->det)) != SL_OK)
+    if (rc == SL_OK && (rc = rawstats_finish(*rs, &s->det)) != SL_OK)
         rc = sl_seterr(err, rc, "%s", rawstats_errmsg(*rs));
     rawstats_set_pool(*rs, NULL);
     tpool_free(pool);

@@ -27,7 +27,8 @@
  * blocks p and p + 1 itself meanwhile.
  *
  * Memory: two blocks of (PHASOR_BLOCK + the most triples of one target)
- * x 40 bytes, ~2.7 MB, 44 bytes per target and 8 per block.
+ * x 40 bytes, ~2.7 MB, and 52 bytes per target (the blocks' bounds and counts
+ * sized for the most blocks there can be, one a target).
  */
 #include "phasor_int.h"
 
@@ -222,20 +223,19 @@ int phasor_recur(const phasor_graph *g, double *E, unsigned char *known, double 
     int64_t most = 0;
     for (int j = 0; j < n; j++)
         most = g->tstart[j + 1] - g->tstart[j] > most ? g->tstart[j + 1] - g->tstart[j] : most;
-    for (int j = 1; j < n; j = block_end(g, j))
-        nb++;
     size_t cap = (size_t)PHASOR_BLOCK + (size_t)most;
-    recur_job r = {.g = g, .rs = {E, known, malloc((size_t)n * sizeof(early))}, .nb = nb,
-                   .bs = malloc((size_t)(nb + 1) * sizeof(int)),
+    recur_job r = {.g = g, .rs = {E, known, malloc((size_t)n * sizeof(early))},
+                   .bs = malloc((size_t)(n > 1 ? n : 2) * sizeof(int)), /* nb + 1 <= n */
                    .buf = {malloc(cap * sizeof(prepped)), malloc(cap * sizeof(prepped))},
-                   .done = calloc((size_t)nb + 1, sizeof(atomic_int))};
+                   .done = calloc((size_t)(n > 1 ? n : 1), sizeof(atomic_int))};
     double wsum = 0, miss = 0;
     int rc = SL_ENOMEM;
     if (!r.rs.ea || !r.bs || !r.buf[0] || !r.buf[1] || !r.done)
         goto free_all;
-    r.bs[0] = 1;
-    for (int p = 0; p < nb; p++)
-        r.bs[p + 1] = block_end(g, r.bs[p]);
+    for (int j = 1; j < n; j = block_end(g, j))
+        r.bs[nb++] = j;
+    r.bs[nb] = n > 1 ? n : 1;
+    r.nb = nb;
     atomic_init(&r.ticket, 0);
     atomic_init(&r.consumed, 0);
     if (par)

@@ -534,10 +534,12 @@ static inline int mx_stage_poke(int port, int reg, int value)
     return rc;
 }
 
-/* Poll the stage itself until wheel's TARGET is slot (the daemon's
- * command arrived) and, with busy, its STATUS is busy (in motion): the
- * daemon's `moving` state starts before its commands do.  0, or -1 after
- * timeout_s. */
+/* Poll the stage itself until the wheel's move to slot has been
+ * commanded: TARGET is slot and STATUS busy (in motion) or, without busy,
+ * busy or already there (POSITION slot, in position).  TARGET alone does
+ * not say it: the driver writes it one request before the move command.
+ * The daemon's `moving` state starts before its commands do.  0, or -1
+ * after timeout_s. */
 static inline int mx_wheel_wait(int port, int wheel, int slot, int busy, double timeout_s)
 {
     modbus_t *m = mx_stage_open(port);
@@ -546,7 +548,8 @@ static inline int mx_wheel_wait(int port, int wheel, int slot, int busy, double 
     while (m && rc != 0 && fx_now() < end) {
         uint16_t r[3];   /* TARGET, POSITION, STATUS */
         if (modbus_read_registers(m, STAGE_REG_WHEEL_BASE(wheel) + STAGE_WREG_TARGET, 3, r) == 3 &&
-            r[0] == slot && (!busy || (r[2] & STAGE_ST_BUSY)))
+            r[0] == slot && ((r[2] & STAGE_ST_BUSY) ||
+                             (!busy && r[1] == slot && (r[2] & STAGE_ST_INPOS))))
             rc = 0;
         else
             fx_nap_ms(10);

@@ -451,9 +451,10 @@ BENCH_TEST(stage_gone_during_move, 90, slow_wheels, "[stage]\nmove_timeout_ms=15
     CHECK(mx_start(b, c, "{\"screen\": 4, \"mask\": 1, \"frames\": 10, \"reconstruct\": "
                    "\"none\"}", uuid) == 0, "start-run");
     mx_want w = {.run = uuid, .state = "moving"};
-    /* Killed while the daemon polls the move, not between its two move
+    /* Killed while the daemon polls the move, not within its move
      * commands (the mask's would then fail as a closed connection): the
-     * mask wheel has its target, the screen wheel is still turning. */
+     * mask wheel's move has been commanded (its target written is not
+     * enough: the command follows it), the screen wheel is still turning. */
     CHECK(mx_poll_status(b, c, mx_is_current, &w, 20) &&
               mx_wheel_moving(b->port, STAGE_WHEEL_SCREEN, 4, 20) == 0 &&
               mx_wheel_wait(b->port, STAGE_WHEEL_MASK, 1, 0, 20) == 0 &&

@@ -91,7 +91,8 @@ typedef struct radon_opts {
     double window_cut_cyc_px; /* window and ramp cut-off fc; 0: 0.5 (Nyquist) */
     radon_interp bp_interp; /* radon_fbp interpolation */
     int bp_upsample;        /* radon_fbp: 1, 2 or 4x band-limited upsampling */
-    int spatial;            /* 0: skip the spatial projector's buffers */
+    int spatial;            /* 0: no spatial projector; radon_fbp makes
+                             * its filter at its first call */
     int threads;            /* radon_project threads (1..16); 0: 1 */
     unsigned fftw_flags;    /* 0: FFTW_MEASURE */
 } radon_opts;

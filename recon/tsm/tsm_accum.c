@@ -39,6 +39,7 @@ struct tsm_accum {
     radon_ws *ws[ACC_MAX_THREADS];
     double *scr;              /* nthreads x 2 GROUP (nf + 4): spectra in double */
     double *bre, *bim, *ps, *mre, *mim;
+    int zero;                 /* the sums are all 0: nothing added since */
     tsm_sums sums;
 };
 
@@ -65,13 +66,16 @@ void tsm_accum_free(tsm_accum *a)
 void tsm_accum_reset(tsm_accum *a)
 {
     finish(a);
+    a->blk[0].nb = a->blk[1].nb = a->nframes = 0;
+    if (a->zero)
+        return;
+    a->zero = 1;
     size_t nb = (size_t)a->nang * a->np, ns = (size_t)a->nang * a->nf;
     memset(a->bre, 0, nb * sizeof *a->bre);
     memset(a->bim, 0, nb * sizeof *a->bim);
     memset(a->ps, 0, ns * sizeof *a->ps);
     memset(a->mre, 0, ns * sizeof *a->mre);
     memset(a->mim, 0, ns * sizeof *a->mim);
-    a->blk[0].nb = a->blk[1].nb = a->nframes = 0;
 }
 
 int tsm_accum_nframes(const tsm_accum *a) { return a->nframes; }
@@ -108,11 +112,15 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
         ok &= k->need && k->spec && (!rad || k->frames);
     }
     a->scr = calloc((size_t)nt * 2 * GROUP * (nf + 4), sizeof *a->scr);
-    a->bre = malloc((nb + 1) * sizeof *a->bre);
-    a->bim = malloc((nb + 1) * sizeof *a->bim);
-    a->ps = malloc(ns * sizeof *a->ps);
-    a->mre = malloc(ns * sizeof *a->mre);
-    a->mim = malloc(ns * sizeof *a->mim);
+    /* Zeroed by calloc: fresh pages are zero until first written, so
+     * their faults fall on the workers adding the first block, in
+     * parallel, not on the caller (~1.5 ms of a 200^2 tsm-fourier plan). */
+    a->bre = calloc(nb + 1, sizeof *a->bre);
+    a->bim = calloc(nb + 1, sizeof *a->bim);
+    a->ps = calloc(ns, sizeof *a->ps);
+    a->mre = calloc(ns, sizeof *a->mre);
+    a->mim = calloc(ns, sizeof *a->mim);
+    a->zero = 1;
     ok &= a->scr && a->bre && a->bim && a->ps && a->mre && a->mim;
     for (int i = 0; ok && rad && i < nt; i++)
         ok = (a->ws[i] = radon_ws_new(rad, err)) != NULL;
@@ -123,7 +131,6 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
         return NULL;
     }
     a->sums = (tsm_sums){a->bre, a->bim, a->ps, a->mre, a->mim};
-    tsm_accum_reset(a);
     return a;
 }
 
@@ -317,6 +324,7 @@ void tsm_accum_commit_frame(tsm_accum *a)
     block *k = &a->blk[a->cur];
     k->need[k->nb] = 1;
     a->nframes++;
+    a->zero = 0;
     if (++k->nb == a->batch)
         submit(a);
 }
@@ -332,6 +340,7 @@ void tsm_accum_commit(tsm_accum *a)
     block *k = &a->blk[a->cur];
     k->need[k->nb] = 0;
     a->nframes++;
+    a->zero = 0;
     if (++k->nb == a->batch)
         submit(a);
 }
@@ -374,4 +383,5 @@ void tsm_accum_unpack(tsm_accum *a, const double *buf, int nframes)
     for (int i = 0; i < 5; n += len[i++])
         memcpy(part[i], buf + n, len[i] * sizeof *buf);
     a->nframes = nframes;
+    a->zero = 0;
 }

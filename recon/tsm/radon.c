@@ -395,7 +395,7 @@ fail_free:
 
 int radon_project(radon *r, const float *img, float *proj)
 {
-    if (!r->sp || !radon_spatial_can_project(r->sp))
+    if (!radon_can_project(r))
         return sl_seterr(&r->err, SL_EINVAL, "radon_project: handle made with spatial = 0");
     radon_spatial_project(r->sp, img, proj);
     return SL_OK;
@@ -414,18 +414,61 @@ int radon_fbp(radon *r, const float *proj, float *img)
     return SL_OK;
 }
 
+int radon_can_project(const radon *r) { return r->sp && radon_spatial_can_project(r->sp); }
+
+radon_ws *radon_ws_new_projector(const radon *r, sl_err *err)
+{
+    if (!radon_can_project(r)) {
+        sl_seterr(err, SL_EINVAL, "radon_ws_new_projector: handle made with spatial = 0");
+        return NULL;
+    }
+    radon_ws *ws = calloc(1, sizeof *ws);
+    int ok = ws != NULL;
+    if (ws) {
+        ok = (ws->sp_scratch = radon_spatial_scratch_new(r->sp)) != NULL;
+        ws->proj = radon_alloc((size_t)r->nang * r->ns * sizeof *ws->proj, 0, &ok);
+        /* fftwf_malloc: the 1-D plans' alignment, for new-array execute */
+        ws->p_in = radon_alloc(r->ns * sizeof *ws->p_in, 1, &ok);
+        ws->p_spec = radon_alloc((r->ns / 2 + 1) * 2 * sizeof *ws->p_spec, 1, &ok);
+    }
+    if (!ok) {
+        sl_seterr(err, SL_ENOMEM, "radon_ws_new_projector: out of memory (%dx%d)", r->w, r->h);
+        radon_ws_free(ws);
+        return NULL;
+    }
+    return ws;
+}
+
 /* ---- 1-D transforms --------------------------------------------------- */
+
+/* Each angle's projection through the 1-D r2c plan on in/out (the plan's
+ * arrays or others of their alignment). */
+static void proj_to_spec(const radon *r, float *in, float *out, const float *proj,
+                         float complex *spec)
+{
+    for (int k = 0; k < r->nang; k++) {
+        memcpy(in, proj + (size_t)k * r->ns, r->ns * sizeof(float));
+        fftwf_execute_dft_r2c(r->p_r2c, in, (fftwf_complex *)out);
+        for (int j = 0; j < r->nf; j++) {   /* (-1)^j: refer phase to s = 0 */
+            float sg = (j & 1) ? -1.0f : 1.0f;
+            spec[(size_t)k * r->nf + j] = CMPLXF(sg * out[2 * j], sg * out[2 * j + 1]);
+        }
+    }
+}
 
 int radon_proj_to_spec(radon *r, const float *proj, float complex *spec)
 {
-    for (int k = 0; k < r->nang; k++) {
-        memcpy(r->p_in, proj + (size_t)k * r->ns, r->ns * sizeof(float));
-        fftwf_execute(r->p_r2c);
-        for (int j = 0; j < r->nf; j++) {   /* (-1)^j: refer phase to s = 0 */
-            float sg = (j & 1) ? -1.0f : 1.0f;
-            spec[(size_t)k * r->nf + j] = CMPLXF(sg * r->p_spec[2 * (j)], sg * r->p_spec[2 * (j) + 1]);
-        }
-    }
+    proj_to_spec(r, r->p_in, r->p_spec, proj, spec);
+    return SL_OK;
+}
+
+int radon_project_spec_ws(const radon *r, radon_ws *ws, const float *img,
+                          float complex *spec)
+{
+    if (!ws || !ws->sp_scratch)
+        return SL_EINVAL;
+    radon_spatial_project_with(r->sp, ws->sp_scratch, img, ws->proj);
+    proj_to_spec(r, ws->p_in, ws->p_spec, ws->proj, spec);
     return SL_OK;
 }
 

@@ -126,6 +126,15 @@ typedef struct radon_ws radon_ws;
 radon_ws *radon_ws_new(const radon *r, sl_err *err);
 void radon_ws_free(radon_ws *ws);
 int radon_slices_ws(const radon *r, radon_ws *ws, const float *img, float complex *spec);
+/* Spatial projections of img and their spectra (radon_project, then
+ * radon_proj_to_spec) on the calling thread alone, with a radon_ws from
+ * radon_ws_new_projector (NULL without the projector, spatial = 0):
+ * threads project different frames with one handle at once.  The same
+ * bits as the two calls. */
+int radon_can_project(const radon *r);
+radon_ws *radon_ws_new_projector(const radon *r, sl_err *err);
+int radon_project_spec_ws(const radon *r, radon_ws *ws, const float *img,
+                          float complex *spec);
 
 /* 1-D transforms between projections and their spectra (per angle; phase
  * referred to s = 0).  spec_to_proj drops frequencies j >= nfreq. */

@@ -54,6 +54,10 @@ struct radon_ws {
     float *rows;              /* nh x ld complex: row spectra by column; the
                                * ky rows no frame row reaches stay 0 */
     float *spec;              /* (nh + 2 pad) x ld complex: padded, centred */
+    /* or, from radon_ws_new_projector, the spatial path's: */
+    float *sp_scratch;        /* the projector's row pairs and columns */
+    float *proj;              /* nang x ns projections */
+    float *p_in, *p_spec;     /* one projection and its spectrum */
 };
 
 /* i mod n in [0, n). */

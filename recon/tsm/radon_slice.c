@@ -67,6 +67,10 @@ void radon_ws_free(radon_ws *ws)
     fftwf_free(ws->grid);
     fftwf_free(ws->rows);
     fftwf_free(ws->spec);
+    free(ws->sp_scratch);
+    free(ws->proj);
+    fftwf_free(ws->p_in);
+    fftwf_free(ws->p_spec);
     free(ws);
 }
 

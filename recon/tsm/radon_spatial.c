@@ -45,6 +45,9 @@ double radon_window_gain(radon_window win, double f, double fc)
 
 static int wrap(int i, int n) { i %= n; return i < 0 ? i + n : i; }
 
+/* Floats of the row pairs: the frame in a 2-pixel zero border. */
+static size_t rows_n(const radon_spatial *sp) { return 2 * ((size_t)sp->w + 4) * (sp->h + 4); }
+
 int radon_spatial_can_project(const radon_spatial *sp) { return sp->rp != NULL; }
 
 void radon_spatial_free(radon_spatial *sp)
@@ -102,8 +105,7 @@ static int build_projector(radon_spatial *sp)
     int K = sp->nang, paired = K % 2 == 0, np = paired ? K / 2 : K;
     int nd = (int)ceil(hypot(sp->w, sp->h)) + 4;
     sp->nd = nd += nd & 1;
-    size_t pw = (size_t)sp->w + 4, ph = (size_t)sp->h + 4;
-    sp->rp = calloc(2 * pw * ph, sizeof *sp->rp);   /* the border stays 0 */
+    sp->rp = calloc(rows_n(sp), sizeof *sp->rp);   /* the border stays 0 */
     sp->pass = malloc(np * sizeof *sp->pass);
     sp->line = malloc((size_t)np * (nd + 1) * sizeof *sp->line);
     sp->cols = malloc((size_t)sp->nthr * (nd + 9) * sizeof *sp->cols);
@@ -314,7 +316,8 @@ int radon_spatial_set_simd(radon_spatial *sp, int level)
 
 /* Passes p0..p1-1 with column scratch cols; each writes only its own two
  * projections, so any split over threads gives the same bits. */
-static void run_passes(const radon_spatial *sp, float *proj, float *cols, int p0, int p1)
+static void run_passes(const radon_spatial *sp, const float *rp, float *proj, float *cols,
+                       int p0, int p1)
 {
     size_t pw = (size_t)sp->w + 4;
     int ns = sp->ns, nd = sp->nd;
@@ -327,12 +330,12 @@ static void run_passes(const radon_spatial *sp, float *proj, float *cols, int p0
             float *col = cols + l->i0, s;
 #if SP_SSE2
             if (sp->simd == 2)
-                s = line_avx2(sp->rp, pw, l, p->ex, p->ey, col);
+                s = line_avx2(rp, pw, l, p->ex, p->ey, col);
             else if (sp->simd == 1)
-                s = line_sse2(sp->rp, pw, l, p->ex, p->ey, col);
+                s = line_sse2(rp, pw, l, p->ex, p->ey, col);
             else
 #endif
-                s = line_portable(sp->rp, pw, l, p->ex, p->ey, col);
+                s = line_portable(rp, pw, l, p->ex, p->ey, col);
             if (prow)
                 prow[sp->bin[l->o]] += s;
         }
@@ -363,23 +366,44 @@ static void *job_run(void *arg)
     const sp_job *j = arg;
     for (int p0; (p0 = atomic_fetch_add(j->next, SP_CLAIM)) < j->sp->npass;) {
         int p1 = p0 + SP_CLAIM < j->sp->npass ? p0 + SP_CLAIM : j->sp->npass;
-        run_passes(j->sp, j->proj, j->cols, p0, p1);
+        run_passes(j->sp, j->sp->rp, j->proj, j->cols, p0, p1);
     }
     return NULL;
 }
 
-void radon_spatial_project(radon_spatial *sp, const float *img, float *proj)
+/* The frame into row pairs rp: pair Y holds frame rows Y - 2, Y - 1
+ * (border rows stay 0). */
+static void load_rows(const radon_spatial *sp, float *rp, const float *img)
 {
-    int w = sp->w, nt = sp->nthr;
+    int w = sp->w;
     size_t pw = (size_t)w + 4;
-    /* Row pair Y holds frame rows Y - 2, Y - 1 (border rows stay 0). */
     for (int Y = 1; Y <= sp->h + 1; Y++) {
-        float *d = sp->rp + 2 * ((size_t)Y * pw + 2);
+        float *d = rp + 2 * ((size_t)Y * pw + 2);
         const float *a = Y >= 2 ? img + (size_t)(Y - 2) * w : NULL;
         const float *b = Y <= sp->h ? img + (size_t)(Y - 1) * w : NULL;
         for (int x = 0; x < w; x++)
             d[2 * x] = a ? a[x] : 0.0f, d[2 * x + 1] = b ? b[x] : 0.0f;
     }
+}
+
+float *radon_spatial_scratch_new(const radon_spatial *sp)
+{
+    return sp->rp ? calloc(rows_n(sp) + (size_t)sp->nd + 9, sizeof(float)) : NULL;
+}
+
+void radon_spatial_project_with(const radon_spatial *sp, float *scratch, const float *img,
+                                float *proj)
+{
+    float *rp = scratch, *cols = scratch + rows_n(sp);
+    load_rows(sp, rp, img);
+    memset(proj, 0, (size_t)sp->nang * sp->ns * sizeof *proj);
+    run_passes(sp, rp, proj, cols, 0, sp->npass);
+}
+
+void radon_spatial_project(radon_spatial *sp, const float *img, float *proj)
+{
+    int nt = sp->nthr;
+    load_rows(sp, sp->rp, img);
     memset(proj, 0, (size_t)sp->nang * sp->ns * sizeof *proj);
     pthread_t th[SP_MAX_THREADS];
     sp_job job[SP_MAX_THREADS];

@@ -65,6 +65,13 @@ int radon_spatial_set_simd(radon_spatial *sp, int level);
 int radon_spatial_can_project(const radon_spatial *sp);
 /* img (w*h) -> proj (nangles*ns); needs the projector. */
 void radon_spatial_project(radon_spatial *sp, const float *img, float *proj);
+/* The same projection on the calling thread alone, with its own scratch
+ * (from radon_spatial_scratch_new, NULL without the projector; free()
+ * it): several threads may project different frames with one handle at
+ * once.  Same bits as radon_spatial_project. */
+float *radon_spatial_scratch_new(const radon_spatial *sp);
+void radon_spatial_project_with(const radon_spatial *sp, float *scratch, const float *img,
+                                float *proj);
 /* proj (nangles*ns) -> img (w*h), 0 outside the disc. */
 void radon_spatial_fbp(radon_spatial *sp, const float *proj, float *img);
 

@@ -182,7 +182,7 @@ static int tsm_parts(tsm *t, sl_err *err)
         return SL_ENOMEM;
     if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK)
         return sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
-    t->acc = tsm_accum_new(o->variant == TSM_FOURIER ? t->rad : NULL, t->w, t->h, t->nang,
+    t->acc = tsm_accum_new(t->rad, t->w, t->h, t->nang,
                            t->nf, t->off, t->len, t->np, o->batch ? o->batch : 8, t->pool, err);
     return t->acc ? SL_OK : SL_ENOMEM;
 }
@@ -244,23 +244,14 @@ fail_free:
 int tsm_add(tsm *t, const float *frame)
 {
     size_t npix = (size_t)t->w * t->h, i;
-    int fourier = t->o.variant == TSM_FOURIER;
     if ((i = finite_scan(frame, npix)) < npix)
         return sl_seterr(&t->err, SL_EDATA, "tsm_add: frame %d pixel (%zu, %zu) is not finite",
                          t->nframes, i % t->w, i / t->w);
-    if (fourier) { /* straight into the accumulator's block, sliced there */
-        memcpy(tsm_accum_frame_slot(t->acc), frame, npix * sizeof *frame);
-        tsm_accum_commit_frame(t->acc);
-    } else {
-        int st = radon_project(t->rad, frame, t->proj);
-        if (st == SL_OK)
-            st = radon_proj_to_spec(t->rad, t->proj, tsm_accum_slot(t->acc));
-        if (st != SL_OK)
-            return sl_seterr(&t->err, st, "tsm_add: %s", radon_errmsg(t->rad));
-        tsm_accum_commit(t->acc);
-    }
+    /* straight into the accumulator's block: sliced or projected there */
+    memcpy(tsm_accum_frame_slot(t->acc), frame, npix * sizeof *frame);
+    tsm_accum_commit_frame(t->acc);
     t->nframes++;
-    t->have_result = 0;   /* the spatial path reused t->proj */
+    t->have_result = 0;   /* the result no longer covers the frames */
     return SL_OK;
 }
 

@@ -14,9 +14,8 @@ enum { ACC_MAX_THREADS = 64, GROUP = 4, TASKS_PER_THREAD = 4 };
 /* One block of frames (or of their spectra). */
 typedef struct block {
     int nb;                   /* slots filled */
-    float *frames;            /* batch x w h: frames waiting for slices */
-    unsigned char *need;      /* batch: slot holds a frame, not spectra */
-    float complex *spec;      /* batch x nang x nf slice spectra */
+    float *frames;            /* batch x w h: frames waiting for spectra */
+    float complex *spec;      /* batch x nang x nf their spectra */
 } block;
 
 typedef void (*pairs_fn)(const tsm_accum *a, int nfr, const double *pr, const double *pi,
@@ -24,6 +23,7 @@ typedef void (*pairs_fn)(const tsm_accum *a, int nfr, const double *pr, const do
 
 struct tsm_accum {
     int w, h, nang, nf, np, batch, nframes, nthreads;
+    int spatial;              /* spectra by projection, not by slices */
     pairs_fn pairs;           /* the pair loop's build for this CPU */
     const radon *rad;
     const int *off, *len;
@@ -54,7 +54,7 @@ void tsm_accum_free(tsm_accum *a)
     for (int i = 0; i < a->nthreads; i++)
         radon_ws_free(a->ws[i]);
     for (int b = 0; b < 2; b++)
-        free(a->blk[b].frames), free(a->blk[b].need), free(a->blk[b].spec);
+        free(a->blk[b].frames), free(a->blk[b].spec);
     void *m[] = {a->scr, a->bre, a->bim, a->ps, a->mre, a->mim};
     for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)
         free(m[i]);
@@ -97,6 +97,7 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
     }
     a->w = w, a->h = h, a->nang = nang, a->nf = nf, a->np = np, a->batch = batch;
     a->rad = rad, a->off = off, a->len = len, a->pool = pool, a->nthreads = nt;
+    a->spatial = radon_can_project(rad);
     a->pairs = pick_pairs();
     a->chunk = nang / (TASKS_PER_THREAD * nt);
     a->chunk = a->chunk < 1 ? 1 : a->chunk;
@@ -106,10 +107,9 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
     int ok = 1;
     for (int b = 0; b < 2; b++) {
         block *k = &a->blk[b];
-        k->need = calloc(batch, 1);
         k->spec = malloc((size_t)batch * ns * sizeof *k->spec);
-        k->frames = rad ? malloc((size_t)batch * w * h * sizeof *k->frames) : NULL;
-        ok &= k->need && k->spec && (!rad || k->frames);
+        k->frames = malloc((size_t)batch * w * h * sizeof *k->frames);
+        ok &= k->spec && k->frames;
     }
     a->scr = calloc((size_t)nt * 2 * GROUP * (nf + 4), sizeof *a->scr);
     /* Zeroed by calloc: fresh pages are zero until first written, so
@@ -122,8 +122,9 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
     a->mim = calloc(ns, sizeof *a->mim);
     a->zero = 1;
     ok &= a->scr && a->bre && a->bim && a->ps && a->mre && a->mim;
-    for (int i = 0; ok && rad && i < nt; i++)
-        ok = (a->ws[i] = radon_ws_new(rad, err)) != NULL;
+    for (int i = 0; ok && i < nt; i++)
+        ok = (a->ws[i] = a->spatial ? radon_ws_new_projector(rad, err)
+                                    : radon_ws_new(rad, err)) != NULL;
     if (!ok) {
         sl_seterr(err, SL_ENOMEM, "tsm_accum_new: out of memory (%zu bispectrum elements, "
                   "batch %d)", nb, batch);
@@ -252,10 +253,11 @@ static void block_job(void *ctx, int tid, int nt)
     for (;;) {
         if (a->s_next < a->s_total) {
             int f = a->s_next++;
-            while (!k->need[f])   /* spectra given: nothing to slice */
-                f = a->s_next++;
             pthread_mutex_unlock(&a->mu);
-            radon_slices_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
+            if (a->spatial)
+                radon_project_spec_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
+            else
+                radon_slices_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
             pthread_mutex_lock(&a->mu);
             if (++a->s_done == a->s_total)
                 pthread_cond_broadcast(&a->sliced);
@@ -295,16 +297,8 @@ static void submit(tsm_accum *a)
     block *k = &a->blk[a->cur];
     if (k->nb == 0)
         return;
-    int todo = 0;
-    for (int f = 0; f < k->nb; f++)
-        todo += k->need[f];
-    /* the queue: s_total counts slots up to the last frame to slice */
-    a->s_total = 0;
-    for (int f = 0; f < k->nb; f++)
-        if (k->need[f])
-            a->s_total = f + 1;
-    a->s_next = 0;
-    a->s_done = a->s_total - todo;   /* slots holding spectra are done */
+    a->s_total = k->nb;
+    a->s_next = a->s_done = 0;
     a->a_next = 0;
     a->a_total = (a->nang + a->chunk - 1) / a->chunk;
     a->cur = !a->cur;
@@ -322,23 +316,6 @@ float *tsm_accum_frame_slot(tsm_accum *a)
 void tsm_accum_commit_frame(tsm_accum *a)
 {
     block *k = &a->blk[a->cur];
-    k->need[k->nb] = 1;
-    a->nframes++;
-    a->zero = 0;
-    if (++k->nb == a->batch)
-        submit(a);
-}
-
-float complex *tsm_accum_slot(tsm_accum *a)
-{
-    block *k = &a->blk[a->cur];
-    return k->spec + (size_t)k->nb * a->nang * a->nf;
-}
-
-void tsm_accum_commit(tsm_accum *a)
-{
-    block *k = &a->blk[a->cur];
-    k->need[k->nb] = 0;
     a->nframes++;
     a->zero = 0;
     if (++k->nb == a->batch)

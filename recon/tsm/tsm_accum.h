@@ -3,14 +3,17 @@
  * P(u) and the 1-D bispectrum sum P(u1) P(u2) conj(P(u1 + u2)) over the
  * pairs of tsm_phase (rows off[u1], len[u1]).
  *
- * Frames (Fourier variant) or their slice spectra (any variant) are
- * buffered in blocks of `batch`.  Two blocks alternate: when one is full
+ * Frames are buffered in blocks of `batch`.  Two blocks alternate: when one is full
  * it goes to the pool's workers and the caller returns to fill the other
  * (reading and cleaning the next frames meanwhile); before the next block
  * goes out, the caller joins the work left on the previous one.  A block
  * is a queue of tasks that any thread may claim:
- *   (1) slices, one frame each (radon_slices_ws with the thread's own
- *       radon_ws);
+ *   (1) spectra, one frame each, with the thread's own radon_ws: Fourier
+ *       slices (radon_slices_ws), or the spatial projector's projections
+ *       and their 1-D transforms (radon_project_spec_ws: per frame on one
+ *       thread rather than each frame's rays over all of them, whose
+ *       serial parts, the 1-D FFTs and a thread start, were ~10 % of the
+ *       spatial variant's frames on two threads);
  *   (2) after every slice of the block: accumulation, a few angles each,
  *       adding the block's frames to those angles in frame order, 4 frames
  *       per pass so that one angle's bispectrum (np x 16 bytes) is read
@@ -47,9 +50,10 @@ typedef struct tsm_sums {
     const double *mre, *mim;
 } tsm_sums;
 
-/* rad: the slicer, for tsm_accum_add_frame (may be NULL if only
- * tsm_accum_slot is used); off/len/np: the pair rows (tsm_phase), kept by
- * reference; pool: the threads (kept by reference, may be NULL = 1). */
+/* rad: the frames' spectra, by its spatial projector when it has one
+ * (radon_project_spec_ws), else by Fourier slices (radon_slices_ws);
+ * off/len/np: the pair rows (tsm_phase), kept by reference; pool: the
+ * threads (kept by reference, may be NULL = 1). */
 tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
                          const int *off, const int *len, int np, int batch,
                          tpool *pool, sl_err *err);
@@ -57,16 +61,12 @@ void tsm_accum_free(tsm_accum *a);
 void tsm_accum_reset(tsm_accum *a);
 int tsm_accum_nframes(const tsm_accum *a);
 
-/* The next slot of the filling block for one frame (w*h; needs rad): fill
- * it, then commit it (or not: an uncommitted slot is reused).  A full
- * block is sent to the pool's threads and the call returns at once; the
- * caller fills the other block meanwhile. */
+/* The next slot of the filling block for one frame (w*h): fill it, then
+ * commit it (or not: an uncommitted slot is reused).  A full block is
+ * sent to the pool's threads and the call returns at once; the caller
+ * fills the other block meanwhile. */
 float *tsm_accum_frame_slot(tsm_accum *a);
 void tsm_accum_commit_frame(tsm_accum *a);
-/* Or a slot for one frame's spectra (nang*nf), computed by the caller;
- * the two kinds may be mixed. */
-float complex *tsm_accum_slot(tsm_accum *a);
-void tsm_accum_commit(tsm_accum *a);
 /* Add whatever is buffered, then the sums (valid until the next add). */
 const tsm_sums *tsm_accum_sums(tsm_accum *a);
 

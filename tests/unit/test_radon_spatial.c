@@ -233,6 +233,44 @@ TEST(fbp_without_projector_is_the_same)
     free(img), free(p), free(a), free(b);
 }
 
+/* A frame's projections and spectra on one thread with a radon_ws
+ * (tsm_accum's workers) are the bits of radon_project then
+ * radon_proj_to_spec; two workspaces on two frames do not mix; a
+ * handle without the projector refuses the workspace. */
+TEST(project_spec_ws_is_the_two_calls)
+{
+    radon_opts o;
+    radon_opts_defaults(&o);
+    o.fftw_flags = FFTW_ESTIMATE;
+    o.threads = 2;
+    int w = 30, h = 26, nang = 18;
+    radon *r = radon_new(w, h, nang, &o, NULL);
+    CHECK(r, "radon_new");
+    size_t npix = (size_t)w * h, nsp = (size_t)nang * radon_nfreq(r);
+    float *img = malloc(2 * npix * sizeof *img);
+    float *p = malloc((size_t)nang * radon_nproj(r) * sizeof *p);
+    float complex *want = malloc(2 * nsp * sizeof *want), *got = malloc(2 * nsp * sizeof *got);
+    for (size_t i = 0; i < 2 * npix; i++)
+        img[i] = (float)((i * 2654435761u) % 1000) / 100.0f;
+    radon_ws *ws[2] = {radon_ws_new_projector(r, NULL), radon_ws_new_projector(r, NULL)};
+    CHECK(ws[0] && ws[1], "radon_ws_new_projector");
+    for (int f = 0; f < 2; f++) {
+        CHECK(radon_project(r, img + f * npix, p) == SL_OK, "project");
+        CHECK(radon_proj_to_spec(r, p, want + f * nsp) == SL_OK, "proj_to_spec");
+    }
+    CHECK(radon_project_spec_ws(r, ws[1], img + npix, got + nsp) == SL_OK &&
+              radon_project_spec_ws(r, ws[0], img, got) == SL_OK, "radon_project_spec_ws");
+    CHECK(!memcmp(want, got, 2 * nsp * sizeof *want), "the workspace path changes the spectra");
+    o.spatial = 0;
+    radon *f = radon_new(w, h, nang, &o, NULL);
+    CHECK(f && !radon_ws_new_projector(f, NULL), "a workspace without the projector");
+    radon_free(f);
+    radon_ws_free(ws[0]), radon_ws_free(ws[1]);
+    radon_free(r);
+    free(img), free(p), free(want), free(got);
+}
+
 TC_MAIN(TC_CASE(projector_matches_ray_definition),
         TC_CASE(projector_same_bits_any_threads_or_path), TC_CASE(fbp_same_bits_any_threads),
-        TC_CASE(project_needs_spatial), TC_CASE(fbp_without_projector_is_the_same))
+        TC_CASE(project_needs_spatial), TC_CASE(fbp_without_projector_is_the_same),
+        TC_CASE(project_spec_ws_is_the_two_calls))

@@ -3,22 +3,23 @@
  * P(u) and the 1-D bispectrum sum P(u1) P(u2) conj(P(u1 + u2)) over the
  * pairs of tsm_phase (rows off[u1], len[u1]).
  *
- * Frames are buffered in blocks of `batch`.  Two blocks alternate: when one is full
- * it goes to the pool's workers and the caller returns to fill the other
- * (reading and cleaning the next frames meanwhile); before the next block
- * goes out, the caller joins the work left on the previous one.  A block
- * is a queue of tasks that any thread may claim:
+ * Frames are buffered in blocks of `batch`.  Two blocks alternate: when
+ * one is full it goes to the pool's workers and the caller returns to
+ * fill the other (reading and cleaning the next frames meanwhile); before
+ * the next block goes out, the caller joins the work left on the job in
+ * flight.  The jobs are a pipeline: job p makes block p's spectra and
+ * adds block p - 1's, tasks that any thread may claim in any order:
  *   (1) spectra, one frame each, with the thread's own radon_ws: Fourier
  *       slices (radon_slices_ws), or the spatial projector's projections
  *       and their 1-D transforms (radon_project_spec_ws: per frame on one
  *       thread rather than each frame's rays over all of them, whose
  *       serial parts, the 1-D FFTs and a thread start, were ~10 % of the
  *       spatial variant's frames on two threads);
- *   (2) after every slice of the block: accumulation, a few angles each,
- *       adding the block's frames to those angles in frame order, 4 frames
- *       per pass so that one angle's bispectrum (np x 16 bytes) is read
- *       and written once per 4 frames.
- * Every sum is added to by one task at a time, in frame order, and blocks
+ *   (2) additions, a few angles each, adding the previous block's spectra
+ *       to those angles in frame order, 4 frames per pass so that one
+ *       angle's bispectrum (np x 16 bytes) is read and written once per
+ *       4 frames.
+ * Every sum is added to by one task at a time, in frame order, and jobs
  * go one after the other: the sums are bit-identical for any number of
  * threads and any interleaving (tests/stress/test_stress_edge.c).
  * Memory: 2 batch (w h 4 + K nf 8) bytes of blocks, K (np + 3 nf) 8 bytes

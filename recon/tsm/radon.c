@@ -142,7 +142,7 @@ void radon_free(radon *r)
     for (size_t i = 0; i < sizeof fb / sizeof fb[0]; i++)
         fftwf_free(fb[i]);
     void *mb[] = {r->cs, r->sn, r->xlo, r->xhi, r->deap_x, r->deap_y,
-                  r->tx0, r->ty0, r->tconj, r->twx, r->twy, r->dens,
+                  r->tx0, r->ty0, r->tconj, r->twx, r->twy, r->tord, r->tpos, r->dens,
                   r->it_x, r->it_z, r->it_g, r->it_spec, r->rowf};
     for (size_t i = 0; i < sizeof mb / sizeof mb[0]; i++)
         free(mb[i]);
@@ -383,6 +383,10 @@ radon *radon_new(int w, int h, int nangles, const radon_opts *opts,
         !(r->sp = radon_spatial_new(w, h, nangles, ns, &o, r->cs, r->sn, r->xlo, r->xhi, err)))
         goto fail_free;
     setup_nufft(r, sigma);
+    if (radon_order_samples(r) != SL_OK) {
+        sl_seterr(err, SL_ENOMEM, "radon_new: out of memory (%d angles)", nangles);
+        goto fail_free;
+    }
     radon_density(r);
     return r;
 fail_free:

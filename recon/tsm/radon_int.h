@@ -32,9 +32,12 @@ struct radon {
     float *gspec;             /* ng x nh complex, interleaved (adjoint) */
     fftwf_plan rows_a, rows_b, cols_fwd;     /* forward, on a radon_ws */
     fftwf_plan cols_inv, irows_a, irows_b;   /* inverse (gridding) */
-    int *tx0, *ty0;           /* per sample (k*nf+j): first tap */
+    /* The sample tables, in order of first tap column (radon_order_samples):
+     * row i holds sample tord[i] (k*nf+j); sample s is row tpos[s]. */
+    int *tx0, *ty0;           /* first tap */
     unsigned char *tconj;     /* sample taken at -k, conjugate it */
-    float *twx, *twy;         /* kw weights per sample */
+    float *twx, *twy;         /* kw weights */
+    int *tord, *tpos;
     float *dens;              /* nf: gridding FBP weight, window included */
     /* 1-D */
     float *p_in;
@@ -73,5 +76,8 @@ static inline void *radon_alloc(size_t n, int fftw, int *ok)
 
 /* The forward scratch's sizes, and zeroing its never-written parts. */
 void radon_ws_clear(const radon *r, radon_ws *ws);
+/* The sample tables, made in sample order, sorted by first tap column;
+ * SL_ENOMEM. */
+int radon_order_samples(radon *r);
 
 #endif

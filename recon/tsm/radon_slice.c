@@ -193,15 +193,63 @@ static void sample_taps_any(const float *g, size_t ld, const float *wx, const fl
     *re = ar, *im = ai;
 }
 
+/* The samples in order of first tap column: a sample reads kw columns of
+ * the padded spectrum, so in this order the columns in use stay in cache
+ * (kw (ng + 2 pad) 8 bytes, 33 kB at 512^2) and each is loaded once,
+ * where in angle order every line from the centre out swept the spectrum
+ * (4 MB at 512^2, beyond L2): the taps were 8 % of a tsm-fourier run's
+ * CPU at 512^2 on one thread and half as much again on two.  Each
+ * sample's arithmetic is unchanged, so are its bits.  A counting sort,
+ * stable: O(samples). */
+int radon_order_samples(radon *r)
+{
+    size_t nsamp = (size_t)r->nang * r->nf, kw = (size_t)r->kw;
+    int lo = 0, hi = 0;
+    for (size_t s = 0; s < nsamp; s++) {
+        lo = r->tx0[s] < lo || !s ? r->tx0[s] : lo;
+        hi = r->tx0[s] > hi || !s ? r->tx0[s] : hi;
+    }
+    size_t nkey = (size_t)(hi - lo) + 2;
+    int *cnt = calloc(nkey, sizeof *cnt), ok = cnt != NULL;
+    int *tx0 = radon_alloc(nsamp * sizeof *tx0, 0, &ok);
+    int *ty0 = radon_alloc(nsamp * sizeof *ty0, 0, &ok);
+    unsigned char *tconj = radon_alloc(nsamp, 0, &ok);
+    float *twx = radon_alloc(nsamp * kw * sizeof *twx, 0, &ok);
+    float *twy = radon_alloc(nsamp * kw * sizeof *twy, 0, &ok);
+    r->tord = radon_alloc(nsamp * sizeof *r->tord, 0, &ok);
+    r->tpos = radon_alloc(nsamp * sizeof *r->tpos, 0, &ok);
+    if (ok) {
+        for (size_t s = 0; s < nsamp; s++)
+            cnt[r->tx0[s] - lo + 1]++;
+        for (size_t k = 1; k < nkey; k++)
+            cnt[k] += cnt[k - 1];
+        for (size_t s = 0; s < nsamp; s++) {
+            size_t i = (size_t)cnt[r->tx0[s] - lo]++;
+            r->tord[i] = (int)s, r->tpos[s] = (int)i;
+            tx0[i] = r->tx0[s], ty0[i] = r->ty0[s], tconj[i] = r->tconj[s];
+            memcpy(twx + i * kw, r->twx + s * kw, kw * sizeof *twx);
+            memcpy(twy + i * kw, r->twy + s * kw, kw * sizeof *twy);
+        }
+        void *t;
+        t = r->tx0, r->tx0 = tx0, tx0 = t;
+        t = r->ty0, r->ty0 = ty0, ty0 = t;
+        t = r->tconj, r->tconj = tconj, tconj = t;
+        t = r->twx, r->twx = twx, twx = t;
+        t = r->twy, r->twy = twy, twy = t;
+    }
+    free(cnt), free(tx0), free(ty0), free(tconj), free(twx), free(twy);
+    return ok ? SL_OK : SL_ENOMEM;
+}
+
 int radon_slices_ws(const radon *r, radon_ws *ws, const float *img, float complex *spec)
 {
     grid_load(r, ws->grid, img);
     grid_fft(r, ws);
     int kw = r->kw, c0 = r->ng / 2 + r->spad;
     size_t ld = r->ld, nsamp = (size_t)r->nang * r->nf;
-    for (size_t s = 0; s < nsamp; s++) {
-        const float *wx = r->twx + s * kw, *wy = r->twy + s * kw;
-        const float *g = spec_col(r, ws->spec, r->tx0[s]) + 2 * (size_t)(r->ty0[s] + c0);
+    for (size_t i = 0; i < nsamp; i++) {
+        const float *wx = r->twx + i * kw, *wy = r->twy + i * kw;
+        const float *g = spec_col(r, ws->spec, r->tx0[i]) + 2 * (size_t)(r->ty0[i] + c0);
         float re, im;
         if (kw == 4)
             sample_taps(g, ld, wx, wy, 4, &re, &im);
@@ -211,7 +259,7 @@ int radon_slices_ws(const radon *r, radon_ws *ws, const float *img, float comple
             sample_taps(g, ld, wx, wy, 8, &re, &im);
         else
             sample_taps_any(g, ld, wx, wy, kw, &re, &im);
-        spec[s] = r->tconj[s] ? CMPLXF(re, -im) : CMPLXF(re, im);
+        spec[r->tord[i]] = r->tconj[i] ? CMPLXF(re, -im) : CMPLXF(re, im);
     }
     return SL_OK;
 }
@@ -229,9 +277,10 @@ int radon_slices(radon *r, const float *img, float complex *spec)
 static void grid_spread(radon *r, size_t s, float vr, float vi)
 {
     int kw = r->kw, ng = r->ng, nh = ng / 2 + 1;
-    const float *wx = r->twx + s * kw, *wy = r->twy + s * kw;
-    int x0 = r->tx0[s], y0 = r->ty0[s];
-    if (r->tconj[s])
+    size_t i = (size_t)r->tpos[s];
+    const float *wx = r->twx + i * kw, *wy = r->twy + i * kw;
+    int x0 = r->tx0[i], y0 = r->ty0[i];
+    if (r->tconj[i])
         vi = -vi;
     if (x0 >= 1 && x0 + kw <= nh - 1) {   /* no tap on kx = 0 or ng/2 */
         for (int b = 0; b < kw; b++) {

@@ -1,7 +1,7 @@
 /* tsm_accum.c - see tsm_accum.h. */
 #include "tsm_accum.h"
 
-#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -36,9 +36,10 @@ struct tsm_accum {
      * spectra of block sl (one task a frame) and the addition of block
      * ac's spectra, made by the job before (one task per chunk angles).
      * The two touch different buffers, so any thread takes any task, in
-     * any order, with no wait inside the job.  Under mu: the counters. */
-    pthread_mutex_t mu;
-    int sl, ac, s_next, s_total, a_next, a_total, chunk;
+     * any order, with no wait inside the job: claimed by two atomic
+     * counters, spectra first. */
+    atomic_int s_next, a_next;
+    int sl, ac, s_total, a_total, chunk;
     radon_ws *ws[ACC_MAX_THREADS];
     double *scr;              /* nthreads x 2 GROUP (nf + 4): spectra in double */
     double *bre, *bim, *ps, *mre, *mim;
@@ -61,7 +62,6 @@ void tsm_accum_free(tsm_accum *a)
     void *m[] = {a->scr, a->bre, a->bim, a->ps, a->mre, a->mim};
     for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)
         free(m[i]);
-    pthread_mutex_destroy(&a->mu);
     free(a);
 }
 
@@ -126,7 +126,6 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
     a->chunk = nang / (TASKS_PER_THREAD * nt);
     a->chunk = a->chunk < 1 ? 1 : a->chunk;
     a->pend = -1;
-    pthread_mutex_init(&a->mu, NULL);
     size_t nb = (size_t)nang * np, ns = (size_t)nang * nf;
     int ok = 1;
     for (int b = 0; b < 2; b++) {
@@ -273,30 +272,20 @@ static void block_job(void *ctx, int tid, int nt)
     int ld = a->nf + 4;
     double *pr = a->scr + (size_t)tid * 2 * GROUP * ld, *pi = pr + GROUP * ld;
     (void)nt;
-    pthread_mutex_lock(&a->mu);
-    for (;;) {
-        if (a->s_next < a->s_total) {
-            int f = a->s_next++;
-            const block *k = &a->blk[a->sl];
-            pthread_mutex_unlock(&a->mu);
-            if (a->spatial)
-                radon_project_spec_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
-            else
-                radon_slices_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
-            pthread_mutex_lock(&a->mu);
-        } else if (a->a_next < a->a_total) {
-            int c = a->a_next++;
-            const block *k = &a->blk[a->ac];
-            pthread_mutex_unlock(&a->mu);
-            int a0 = c * a->chunk, a1 = a0 + a->chunk < a->nang ? a0 + a->chunk : a->nang;
-            for (int ang = a0; ang < a1; ang++)
-                for (int f = 0; f < k->nspec; f += GROUP)
-                    add_group(a, k, ang, f, k->nspec - f < GROUP ? k->nspec - f : GROUP, pr, pi);
-            pthread_mutex_lock(&a->mu);
-        } else
-            break;
+    for (int f; (f = atomic_fetch_add(&a->s_next, 1)) < a->s_total;) {
+        const block *k = &a->blk[a->sl];
+        if (a->spatial)
+            radon_project_spec_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
+        else
+            radon_slices_ws(a->rad, a->ws[tid], k->frames + f * npix, k->spec + f * ns);
     }
-    pthread_mutex_unlock(&a->mu);
+    for (int c; (c = atomic_fetch_add(&a->a_next, 1)) < a->a_total;) {
+        const block *k = &a->blk[a->ac];
+        int a0 = c * a->chunk, a1 = a0 + a->chunk < a->nang ? a0 + a->chunk : a->nang;
+        for (int ang = a0; ang < a1; ang++)
+            for (int f = 0; f < k->nspec; f += GROUP)
+                add_group(a, k, ang, f, k->nspec - f < GROUP ? k->nspec - f : GROUP, pr, pi);
+    }
 }
 
 /* Wait for the job in flight, helping with what is left of it; then the
@@ -326,7 +315,8 @@ static void submit(tsm_accum *a)
     if (a->sl < 0 && a->ac < 0)
         return;
     a->pend = -1;
-    a->s_next = a->a_next = 0;
+    atomic_store(&a->s_next, 0);
+    atomic_store(&a->a_next, 0);
     a->s_total = k->nb;
     a->a_total = a->ac >= 0 ? (a->nang + a->chunk - 1) / a->chunk : 0;
     if (a->sl >= 0) {

@@ -227,11 +227,11 @@ int bispec_add(bispec *b, const float *frame)
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
-    size_t npx = (size_t)b->w * b->h, bad = finite_scan(frame, npx);
-    if (bad < npx)
+    size_t npx = (size_t)b->w * b->h;
+    size_t bad = finite_copy(b->in + (size_t)(b->nb - b->nspread) * b->npad, frame, npx);
+    if (bad < npx) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&b->err, SL_EDATA, "bispec_add: frame %d pixel %zu is not finite",
                          b->n, bad);
-    memcpy(b->in + (size_t)(b->nb - b->nspread) * b->npad, frame, npx * sizeof *frame);
     b->n++;
     b->phased = 0;
     if (++b->nb == b->kb)

@@ -127,11 +127,11 @@ int powspec_add(powspec *p, const float *frame)
     if (!p || !frame)
         return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
                          "powspec_add: NULL argument");
-    size_t n = (size_t)p->w * p->h, bad = finite_scan(frame, n);
-    if (bad < n)
+    size_t n = (size_t)p->w * p->h;
+    size_t bad = finite_copy(p->in + (size_t)p->nstaged * p->npad, frame, n);
+    if (bad < n) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&p->err, SL_EDATA, "powspec_add: frame %d pixel %zu is not finite",
                          p->n + p->nstaged, bad);
-    memcpy(p->in + (size_t)p->nstaged * p->npad, frame, n * sizeof *frame);
     if (++p->nstaged == p->ns)
         powspec_flush(p);
     return SL_OK;

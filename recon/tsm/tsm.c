@@ -243,12 +243,12 @@ fail_free:
 
 int tsm_add(tsm *t, const float *frame)
 {
+    /* straight into the accumulator's block: sliced or projected there;
+     * a bad frame's slot is not committed, the next frame overwrites it */
     size_t npix = (size_t)t->w * t->h, i;
-    if ((i = finite_scan(frame, npix)) < npix)
+    if ((i = finite_copy(tsm_accum_frame_slot(t->acc), frame, npix)) < npix)
         return sl_seterr(&t->err, SL_EDATA, "tsm_add: frame %d pixel (%zu, %zu) is not finite",
                          t->nframes, i % t->w, i / t->w);
-    /* straight into the accumulator's block: sliced or projected there */
-    memcpy(tsm_accum_frame_slot(t->acc), frame, npix * sizeof *frame);
     tsm_accum_commit_frame(t->acc);
     t->nframes++;
     t->have_result = 0;   /* the result no longer covers the frames */

@@ -57,8 +57,17 @@ TEST(finite_scan_finds_the_first_bad_value)
                 w[at[k] + 3] = NAN; /* a later one does not matter */
             size_t got = finite_scan(w, N);
             CHECK(got == (size_t)at[k], "%s at %d read as %zu", b ? "-Inf" : "NaN", at[k], got);
+            float c[N];
+            got = finite_copy(c, w, N);
+            CHECK(got == (size_t)at[k], "copy: %s at %d read as %zu", b ? "-Inf" : "NaN",
+                  at[k], got);
+            CHECK(!memcmp(c, w, sizeof c), "copy: %s at %d: not the whole frame",
+                  b ? "-Inf" : "NaN", at[k]);
         }
     }
+    float c[N];
+    CHECK(finite_copy(c, v, N) == N && !memcmp(c, v, sizeof c), "copy of a finite frame");
+    CHECK(finite_copy(c, v, 0) == 0, "empty copy");
 }
 
 TC_MAIN(TC_CASE(median_equals_sorted_middle), TC_CASE(finite_scan_finds_the_first_bad_value))

@@ -79,6 +79,35 @@ TEST(stuck_hot_and_dead_pixels_are_found_and_nothing_else)
     rawstats_free(rs);
 }
 
+/* One fractional value anywhere (a vector block's first or last lane, a
+ * row's scalar tail at an odd width, negative) makes the data non-integer;
+ * integers stay integer up to 2^24 and beyond, where every float is one. */
+TEST(one_fraction_anywhere_makes_the_data_non_integer)
+{
+    enum { FW = 61, FH = 9, NF = 8 };
+    static const int at[] = {-1, 0, 3, 4, 60, 61, FW * FH - 1};
+    static const float frac[] = {0.5f, 0.25f, -3.5f, 1e-3f, 7.75f, 1048575.5f, 0.5f};
+    for (int c = 0; c < 7; c++) {
+        rawstats *rs = NULL;
+        sl_err e;
+        CHECK(rawstats_new(&rs, FW, FH, 0, &e) == SL_OK, "%s", e.msg);
+        float f[FW * FH];
+        for (int k = 0; k < NF; k++) {
+            for (int i = 0; i < FW * FH; i++)
+                f[i] = (float)((i * 7 + k * 3) % 50 + 100);
+            f[5] = 16777216.0f * 3, f[6] = -5; /* integers too */
+            if (at[c] >= 0 && k == 3)
+                f[at[c]] = frac[c];
+            CHECK(rawstats_add(rs, f) == SL_OK, "add");
+        }
+        rawstats_result res;
+        CHECK(rawstats_finish(rs, &res) == SL_OK, "%s", rawstats_errmsg(rs));
+        CHECK(res.integer_valued == (at[c] < 0), "fraction %g at %d: integer_valued %d",
+              at[c] < 0 ? 0.0 : frac[c], at[c], res.integer_valued);
+        rawstats_free(rs);
+    }
+}
+
 TEST(a_warm_pixel_with_noise_is_hot)
 {
     rawstats *rs = NULL;
@@ -230,6 +259,7 @@ TEST(bad_arguments_are_named)
 }
 
 TC_MAIN(TC_CASE(stuck_hot_and_dead_pixels_are_found_and_nothing_else),
+        TC_CASE(one_fraction_anywhere_makes_the_data_non_integer),
         TC_CASE(a_warm_pixel_with_noise_is_hot), TC_CASE(an_undersampled_star_is_never_a_bad_pixel),
         TC_CASE(flat_topped_peaks_and_the_data_step), TC_CASE(a_pool_gives_the_same_result),
         TC_CASE(bad_arguments_are_named))

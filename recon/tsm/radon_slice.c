@@ -204,10 +204,10 @@ static void sample_taps_any(const float *g, size_t ld, const float *wx, const fl
 int radon_order_samples(radon *r)
 {
     size_t nsamp = (size_t)r->nang * r->nf, kw = (size_t)r->kw;
-    int lo = 0, hi = 0;
-    for (size_t s = 0; s < nsamp; s++) {
-        lo = r->tx0[s] < lo || !s ? r->tx0[s] : lo;
-        hi = r->tx0[s] > hi || !s ? r->tx0[s] : hi;
+    int lo = r->tx0[0], hi = r->tx0[0];
+    for (size_t s = 1; s < nsamp; s++) {
+        lo = r->tx0[s] < lo ? r->tx0[s] : lo;
+        hi = r->tx0[s] > hi ? r->tx0[s] : hi;
     }
     size_t nkey = (size_t)(hi - lo) + 2;
     int *cnt = calloc(nkey, sizeof *cnt), ok = cnt != NULL;

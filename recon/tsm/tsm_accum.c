@@ -8,7 +8,7 @@
 /* Frames taken together by the pair loop: each accumulator element is
  * loaded and stored once per group instead of once per frame.  Angles per
  * accumulation task: small enough to balance the threads, large enough
- * that a claim (one mutex round trip) is noise. */
+ * that a claim (one atomic add) is noise. */
 enum { ACC_MAX_THREADS = 64, GROUP = 4, TASKS_PER_THREAD = 4 };
 
 /* One block of frames and of their spectra. */
@@ -109,9 +109,11 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
                          tpool *pool, sl_err *err)
 {
     int nt = pool ? tpool_size(pool) : 1;
-    if (w < 1 || h < 1 || nang < 1 || nf < 3 || np < 0 || batch < 1 || nt > ACC_MAX_THREADS) {
-        sl_seterr(err, SL_EINVAL, "tsm_accum_new: bad parameters (%dx%d, %d angles, %d "
-                  "frequencies, batch %d, %d threads)", w, h, nang, nf, batch, nt);
+    if (!rad || w < 1 || h < 1 || nang < 1 || nf < 3 || np < 0 || batch < 1 ||
+        nt > ACC_MAX_THREADS) {
+        sl_seterr(err, SL_EINVAL, "tsm_accum_new: bad parameters (%s, %dx%d, %d angles, %d "
+                  "frequencies, batch %d, %d threads)", rad ? "radon" : "no radon", w, h, nang,
+                  nf, batch, nt);
         return NULL;
     }
     tsm_accum *a = calloc(1, sizeof *a);

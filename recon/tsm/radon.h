@@ -36,7 +36,7 @@
  *    light reaches the frame edge) of F(0), see test_radon).
  *    Cost: one g^2 real FFT (0.09 ms at g = 256, 0.17 ms at 400) plus
  *    nangles*nfreq*kw^2 complex multiply-adds; each sample's taps are one
- *    contiguous block of a padded spectrum (radon.c, Forward layout).
+ *    contiguous block of a padded spectrum (radon_slice.c, Forward layout).
  * Two inverses from the same data:
  *  - radon_fbp: filtered back projection in image space: ramp filter (the
  *    Ram-Lak kernel sampled in space, zero-padded to 2*nproj so the
@@ -56,7 +56,11 @@
  * All buffers and FFTW plans are made at radon_new; the transforms allocate
  * nothing.  A handle is not re-entrant (it owns scratch buffers): use one
  * per thread.  FFTW's planner is not thread-safe: create handles from one
- * thread.
+ * thread.  Given a pool (radon_opts.pool), one image's radon_slices,
+ * radon_fbp_slices and radon_invert_iter, and radon_new's tap tables, run
+ * on all its threads: each FFT batch in chunks of 16 transforms, the
+ * gridding by chunks of 16 grid columns (radon_batch.c), with the bits of
+ * one thread (at 512^2: FBP 2.4 -> 1.4 ms, slices 1.8 -> 0.9 ms on two).
  */
 #ifndef SL_RADON_H
 #define SL_RADON_H
@@ -64,6 +68,7 @@
 #include <complex.h>
 
 #include "status.h"
+#include "base/tpool.h"
 
 typedef enum radon_window {
     RADON_WIN_RAMLAK = 0,  /* plain ramp, cut at the window cut-off */
@@ -95,6 +100,11 @@ typedef struct radon_opts {
                              * its filter at its first call */
     int threads;            /* radon_project threads (1..16); 0: 1 */
     unsigned fftw_flags;    /* 0: FFTW_MEASURE */
+    tpool *pool;            /* borrowed, may be NULL: radon_new's tables,
+                             * radon_slices and radon_fbp_slices run on
+                             * its threads, with the same bits as on one;
+                             * the handle must not be used while the pool
+                             * runs another job (tpool.h) */
 } radon_opts;
 
 /* Defaults: everything 0 except bp_interp = CUBIC, bp_upsample = 2,

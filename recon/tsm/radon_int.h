@@ -7,10 +7,28 @@
 
 #include "radon.h"
 #include "radon_spatial.h"
+#include "base/tpool.h"
 #include <fftw3.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* A batch of 1-D FFTs in chunks of RADON_CHUNK transforms, so that any
+ * thread can run any chunk (FFTW's new-array execute) and a single image
+ * is transformed on every thread of the pool; one thread runs the chunks
+ * in turn.  Chunk c starts in_step (out_step) floats after chunk 0: a
+ * multiple of RADON_CHUNK elements, so every chunk has chunk 0's
+ * alignment and the plans apply.  The bits of a transform do not depend
+ * on which chunk or thread runs it. */
+enum { RADON_CHUNK = 16 };
+typedef enum { RADON_R2C, RADON_C2C_FWD, RADON_C2C_INV, RADON_C2R } radon_kind;
+typedef struct radon_batch {
+    fftwf_plan full, tail;    /* RADON_CHUNK transforms; the last chunk's (NULL: full) */
+    radon_kind kind;
+    int count, nchunk;        /* transforms, chunks */
+    float *in, *out;          /* chunk 0's arrays, as planned */
+    size_t in_step, out_step;
+} radon_batch;
 
 struct radon {
     int w, h, nang, ns, nf;
@@ -30,8 +48,15 @@ struct radon {
     radon_ws *ws;             /* the handle's own forward scratch */
     float *grid_out;          /* h x ng */
     float *gspec;             /* ng x nh complex, interleaved (adjoint) */
-    fftwf_plan rows_a, rows_b, cols_fwd;     /* forward, on a radon_ws */
-    fftwf_plan cols_inv, irows_a, irows_b;   /* inverse (gridding) */
+    /* forward, on a radon_ws: the row blocks a and b, the columns */
+    radon_batch fr_a, fr_b, fc;
+    /* inverse (gridding), on gspec and grid_out */
+    radon_batch ic, ir_a, ir_b;
+    /* the gridding by column chunk (RADON_CHUNK columns, as ic's): chunk
+     * c's samples are gsamp[goff[c] .. goff[c + 1]), in sample order,
+     * their frequencies gj */
+    int *goff, *gsamp, *gj;
+    tpool *pool;              /* radon_opts.pool, borrowed (NULL: none) */
     /* The sample tables, in order of first tap column (radon_order_samples):
      * row i holds sample tord[i] (k*nf+j); sample s is row tpos[s]. */
     int *tx0, *ty0;           /* first tap */
@@ -73,6 +98,21 @@ static inline void *radon_alloc(size_t n, int fftw, int *ok)
     *ok &= p != NULL;
     return p;
 }
+
+/* Plan b: count transforms of length n, element strides is and os,
+ * transform distances idist and odist (in elements of the kind's input
+ * and output type), on in and out; 0 when FFTW cannot.  Executing chunk
+ * c on chunk 0's arrays shifted by the same offsets: radon_batch_run. */
+int radon_batch_plan(radon_batch *b, radon_kind kind, int n, int count, float *in, int is,
+                     int idist, float *out, int os, int odist, unsigned flags);
+/* Chunk c of b on in and out, arrays laid out as the planned ones. */
+void radon_batch_run(const radon_batch *b, int c, float *in, float *out);
+void radon_batch_free(radon_batch *b);
+/* Every plan of the handle, on the scratch pws and the handle's buffers;
+ * 0 when FFTW cannot. */
+int radon_plan_ffts(radon *r, radon_ws *pws, unsigned flags);
+/* The gridding's sample lists per column chunk; SL_ENOMEM. */
+int radon_grid_lists(radon *r);
 
 /* The forward scratch's sizes, and zeroing its never-written parts. */
 void radon_ws_clear(const radon *r, radon_ws *ws);

@@ -172,14 +172,15 @@ static int tsm_parts(tsm *t, sl_err *err)
     ro.spatial = o->variant == TSM_SPATIAL;
     ro.threads = o->threads > 0 ? o->threads : tpool_default_threads();
     ro.fftw_flags = o->fftw_flags;
+    if (!(t->pool = tpool_new(o->threads, err)))
+        return SL_ENOMEM;
+    ro.pool = t->pool;   /* the result's slices and FBPs on every thread */
     if (!(t->rad = radon_new(t->w, t->h, t->nang, &ro, err)) ||
         !(t->ph = tsm_phase_new(t->nang, t->nf, o->r2_bins, err)))
         return SL_EINVAL;
     t->np = tsm_phase_npairs(t->ph);
     t->off = tsm_phase_rowoff(t->ph);
     t->len = tsm_phase_rowlen(t->ph);
-    if (!(t->pool = tpool_new(o->threads, err)))
-        return SL_ENOMEM;
     if (tsm_phase_set_pool(t->ph, t->pool) != SL_OK)
         return sl_seterr(err, SL_ENOMEM, "tsm_new: out of memory (phase scratch)");
     t->acc = tsm_accum_new(t->rad, t->w, t->h, t->nang,

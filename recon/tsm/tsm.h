@@ -281,9 +281,10 @@ void tsm_arc(const tsm *t, double *arc_bins, double *extent_px);
 /* ---- the object's extent (tsm_extent.c), used by tsm_result -----------
  * tsm_extent_px: diameter in px from the mean power ps (nangles*nfreq,
  * bias-corrected): the largest autocorrelation lag above level x its
- * peak, over the angles (NAN: out of memory).  tsm_arc_cap: the largest
- * arc (bins) that turns a feature extent_px away by <= 0.4 rad. */
-double tsm_extent_px(const double *ps, int nang, int nf, int ns, double level);
+ * peak, over the angles (NAN: out of memory), on pool's threads (NULL:
+ * the caller's; the same number on any).  tsm_arc_cap: the largest arc
+ * (bins) that turns a feature extent_px away by <= 0.4 rad. */
+double tsm_extent_px(const double *ps, int nang, int nf, int ns, double level, tpool *pool);
 double tsm_arc_cap(double extent_px, int ns);
 
 /* ---- the 1-D phases (tsm_phase.c), used by tsm_result -----------------

@@ -112,7 +112,7 @@ static void result_phases(tsm *t, double sbar, double g, double lv)
     t->extent = 0;
     if (t->o.arc_bins == 0) {   /* capped by the diameter: tsm_extent.c */
         tsm_power(t, t->psc);
-        t->extent = tsm_extent_px(t->psc, t->nang, nf, t->ns, 0.05);
+        t->extent = tsm_extent_px(t->psc, t->nang, nf, t->ns, 0.05, t->pool);
         t->extent = t->extent > 0 ? t->extent : 0;   /* NAN: no memory, no cap */
         arc = fmin(arc, tsm_arc_cap(t->extent, t->ns));
     }

@@ -12,6 +12,7 @@
  * 1.16 / 1.25 on the 200^2 bench at 30 / 40 px). */
 #include <fftw3.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "sim/mask.h"
 #include "measure/metrics.h"
@@ -39,13 +40,31 @@ TEST(extent_analytic)
     double *ps = malloc(sizeof(double) * nang * nf);
     CHECK(ps, "malloc");
     binary_power(ps, nang, nf, ns, 0, 0);
-    double e0 = tsm_extent_px(ps, nang, nf, ns, 0.05);
+    double e0 = tsm_extent_px(ps, nang, nf, ns, 0.05, NULL);
     const int seps[] = {10, 30};
     double e[2];
+    tpool *pool[2] = {tpool_new(2, NULL), tpool_new(3, NULL)};
+    CHECK(pool[0] && pool[1], "tpool_new");
     for (int i = 0; i < 2; i++) {
         binary_power(ps, nang, nf, ns, seps[i], 1);
-        e[i] = tsm_extent_px(ps, nang, nf, ns, 0.05);
+        e[i] = tsm_extent_px(ps, nang, nf, ns, 0.05, NULL);
+        /* the maximum, whoever scans what: the widest angle moved to
+         * every task of the pools' (rows rotated by rot) */
+        double *rp = malloc(sizeof(double) * nang * nf);
+        CHECK(rp, "malloc");
+        for (int rot = 0; rot < nang; rot++) {
+            for (int a = 0; a < nang; a++)
+                memcpy(rp + (size_t)((a + rot) % nang) * nf, ps + (size_t)a * nf,
+                       sizeof(double) * nf);
+            for (int p = 0; p < 2; p++) {
+                double ep = tsm_extent_px(rp, nang, nf, ns, 0.05, pool[p]);
+                CHECK(ep == e[i], "%d px, rotated %d: extent %g on %d threads, %g on one",
+                      seps[i], rot, ep, tpool_size(pool[p]), e[i]);
+            }
+        }
+        free(rp);
     }
+    tpool_free(pool[0]), tpool_free(pool[1]);
     free(ps);
     CHECK(e0 == 5, "single star: extent %g px, want 5", e0);
     CHECK(e[0] == 14 && e[1] == 34, "binary: extent %g / %g px, want 14 / 34", e[0], e[1]);

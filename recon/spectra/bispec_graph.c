@@ -26,14 +26,44 @@ typedef struct hfreq {
     int p, q, r2;
 } hfreq;
 
-static int cmp_hfreq(const void *x, const void *y)
+/* hypot(p, q) > rc, calling hypot only near the circle: integer r2 far
+ * from rc^2 cannot round across it (the same answers; hypot on every
+ * frequency was ~3 ms of serial planning at 512^2). */
+static int beyond(int p, int q, double rc)
 {
-    const hfreq *a = x, *b = y;
-    if (a->r2 != b->r2)
-        return (a->r2 > b->r2) - (a->r2 < b->r2);
-    if (a->q != b->q)
-        return (a->q > b->q) - (a->q < b->q);
-    return (a->p > b->p) - (a->p < b->p);
+    double r2 = (double)p * p + (double)q * q;
+    if (r2 < (rc - 1) * (rc - 1) && rc > 1)
+        return 0;
+    if (r2 > (rc + 1) * (rc + 1))
+        return 1;
+    return hypot(p, q) > rc;
+}
+
+/* The frequencies in rank order, by |u|^2, then q, then p: a counting
+ * sort on r2 keeps the input's (q, p) order within equal r2 (the keys
+ * are distinct, so it is the order qsort gave; qsort of ~1e5 entries was
+ * ~10 ms of serial planning at 512^2).  SL_ENOMEM. */
+static int sort_by_radius(hfreq **hf, int nf)
+{
+    int rmax = 0;
+    for (int i = 0; i < nf; i++)
+        rmax = (*hf)[i].r2 > rmax ? (*hf)[i].r2 : rmax;
+    int *cnt = calloc((size_t)rmax + 2, sizeof *cnt);
+    hfreq *out = malloc((size_t)(nf ? nf : 1) * sizeof *out);
+    if (!cnt || !out) {
+        free(cnt), free(out);
+        return SL_ENOMEM;
+    }
+    for (int i = 0; i < nf; i++)
+        cnt[(*hf)[i].r2 + 1]++;
+    for (int r = 0; r <= rmax; r++)
+        cnt[r + 1] += cnt[r];
+    for (int i = 0; i < nf; i++)
+        out[cnt[(*hf)[i].r2]++] = (*hf)[i];
+    free(cnt);
+    free(*hf);
+    *hf = out;
+    return SL_OK;
 }
 
 /* The u2 disk: offsets with 0 < |u2| <= R2 that are in S, by row, and
@@ -94,12 +124,15 @@ static int build_freqs(bispec *b)
             if (p == 0 && q < 0)
                 continue;
             int in = !m || m[bispec_fidx(p, q, w, h)] || m[bispec_fidx(-p, -q, w, h)];
-            if (rc > 0 && hypot(p, q) > rc)
+            if (rc > 0 && beyond(p, q, rc))
                 in = 0;
             if (in || (p == 0 && q == 0))
                 hf[nf++] = (hfreq){p, q, p * p + q * q};
         }
-    qsort(hf, (size_t)nf, sizeof *hf, cmp_hfreq);
+    if (sort_by_radius(&hf, nf) != SL_OK) {
+        free(hf);
+        return SL_ENOMEM;
+    }
     b->nf = nf;
     b->pm = w / 2 + r2;
     b->qm = h / 2 + r2;
@@ -267,7 +300,7 @@ static int scan_triples(bispec *b, const unsigned char *reach)
         for (int j = 0; j < b->nf; j++) /* counts to starts */
             b->tstart[j + 1] += b->tstart[j];
         b->nt = b->tstart[b->nf];
-        b->tk = bispec_alloc(b, (size_t)b->nt * sizeof *b->tk);
+        b->tk = bispec_alloc_unzeroed(b, (size_t)b->nt * sizeof *b->tk);   /* join_run fills it */
         if (b->tk)
             tpool_run(b->pool, join_run, &job);
     }
@@ -283,10 +316,23 @@ static int scan_triples(bispec *b, const unsigned char *reach)
  * the next target in a row takes the same u1 legs of a disk segment but
  * one, still in L1 (bispec_kernel.c).  Any order gives the same bits:
  * each triple is summed by one thread, batch after batch. */
-static int cmp_key(const void *x, const void *y)
+/* The frequencies j in increasing order of key[j] (distinct, in
+ * 0..nkey-1) into ord: a table of size nkey scanned once (O(nkey + nf),
+ * where qsort took ~15 ms each of serial planning at 512^2).  SL_ENOMEM. */
+static int order_by_key(const int64_t *key, int nf, int64_t nkey, int32_t *ord)
 {
-    const int64_t *a = x, *b = y;
-    return (*a > *b) - (*a < *b);
+    int32_t *slot = malloc((size_t)nkey * sizeof *slot);
+    if (!slot)
+        return SL_ENOMEM;
+    memset(slot, 0xff, (size_t)nkey * sizeof *slot);   /* -1: no frequency */
+    for (int j = 0; j < nf; j++)
+        slot[key[j]] = j;
+    int n = 0;
+    for (int64_t k = 0; k < nkey; k++)
+        if (slot[k] >= 0)
+            ord[n++] = slot[k];
+    free(slot);
+    return SL_OK;
 }
 
 static int tile_order(bispec *b)
@@ -294,22 +340,20 @@ static int tile_order(bispec *b)
     int64_t *key = malloc((size_t)b->nf * sizeof *key);
     if (!key)
         return SL_ENOMEM;
-    int64_t ntp = b->lw / BISPEC_TILE + 1;
+    int64_t ntp = b->lw / BISPEC_TILE + 1, ntq = b->lh / BISPEC_TILE + 1;
+    int64_t tt = (int64_t)BISPEC_TILE * BISPEC_TILE;
     for (int j = 0; j < b->nf; j++) {
         int64_t tile = (int64_t)((b->fq[j] + b->qm) / BISPEC_TILE) * ntp +
                        (b->fp[j] + b->pm) / BISPEC_TILE;
         int64_t in = (int64_t)((b->fq[j] + b->qm) % BISPEC_TILE) * BISPEC_TILE +
                      (b->fp[j] + b->pm) % BISPEC_TILE;
-        key[j] = (tile * BISPEC_TILE * BISPEC_TILE + in) << 32 | j;
+        key[j] = tile * tt + in;
     }
-    qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
-    for (int j = 0; j < b->nf; j++) {
-        b->order[j] = (int32_t)(key[j] & 0xffffffff);
-        b->tbeg[j] = j == 0 || (key[j] >> 32) / (BISPEC_TILE * BISPEC_TILE) !=
-                                  (key[j - 1] >> 32) / (BISPEC_TILE * BISPEC_TILE);
-    }
+    int rc = order_by_key(key, b->nf, ntq * ntp * tt, b->order);
+    for (int j = 0; rc == SL_OK && j < b->nf; j++)
+        b->tbeg[j] = j == 0 || key[b->order[j]] / tt != key[b->order[j - 1]] / tt;
     free(key);
-    return SL_OK;
+    return rc;
 }
 
 /* sorder: the frequencies by their place in the half spectrum (row q mod
@@ -319,15 +363,11 @@ static int spectrum_order(bispec *b)
     int64_t *key = malloc((size_t)b->nf * sizeof *key);
     if (!key)
         return SL_ENOMEM;
-    for (int j = 0; j < b->nf; j++) {
-        int64_t o = (int64_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
-        key[j] = o << 32 | j;
-    }
-    qsort(key, (size_t)b->nf, sizeof *key, cmp_key);
     for (int j = 0; j < b->nf; j++)
-        b->sorder[j] = (int32_t)(key[j] & 0xffffffff);
+        key[j] = (int64_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
+    int rc = order_by_key(key, b->nf, (int64_t)b->h * b->wc, b->sorder);
     free(key);
-    return SL_OK;
+    return rc;
 }
 
 /* Split order[] into BISPEC_KUNITS units of about equal triple counts,

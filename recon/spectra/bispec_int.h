@@ -93,6 +93,7 @@ static inline size_t bispec_fidx(int p, int q, int w, int h)
 
 /* Zeroed, 64-byte aligned, counted in b->mem (bispec.c). */
 void *bispec_alloc(bispec *b, size_t bytes);
+void *bispec_alloc_unzeroed(bispec *b, size_t bytes);
 
 /* Frequencies, lut, disk, triples, target order and thread ranges
  * (bispec_graph.c).  SL_ENOMEM, or SL_EDATA with the message in err. */

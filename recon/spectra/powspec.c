@@ -387,6 +387,7 @@ int powspec_support(const double *ps, int w, int h, double nsigma,
      * mask as it was (neighbours are checked against ps, not the edited
      * mask), so the result is independent of scan order and symmetric. */
     double rmax = 0;
+    long r2max = -1;   /* hypot is monotonic in the integer |u|^2 */
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
             size_t k = (size_t)j * w + i;
@@ -408,11 +409,15 @@ int powspec_support(const double *ps, int w, int h, double nsigma,
             size_t k = (size_t)j * w + i;
             if (mask[k] == 2)
                 mask[k] = 0;
-            if (mask[k]) {
+            if (mask[k]) {   /* hypot only where |u|^2 reaches the largest so far */
                 int pf = i <= (w - 1) / 2 ? i : i - w;
                 int qf = j <= (h - 1) / 2 ? j : j - h;
-                double r = hypot(pf, qf);
-                rmax = r > rmax ? r : rmax;
+                long r2 = (long)pf * pf + (long)qf * qf;
+                if (r2 >= r2max) {
+                    double r = hypot(pf, qf);
+                    rmax = r2 > r2max || r > rmax ? r : rmax;
+                    r2max = r2;
+                }
             }
         }
     mask[0] = 1;

@@ -161,6 +161,8 @@ void radon_free(radon *r)
     void *fb[] = {r->grid_out, r->gspec, r->p_in, r->p_spec};
     for (size_t i = 0; i < sizeof fb / sizeof fb[0]; i++)
         fftwf_free(fb[i]);
+    for (int t = 1; t < r->np1; t++)
+        fftwf_free(r->p1_in[t]), fftwf_free(r->p1_spec[t]);
     void *mb[] = {r->cs, r->sn, r->xlo, r->xhi, r->deap_x, r->deap_y,
                   r->tx0, r->ty0, r->tconj, r->twx, r->twy, r->tord, r->tpos, r->dens,
                   r->it_x, r->it_z, r->it_g, r->it_spec, r->rowf, r->goff, r->gsamp, r->gj};
@@ -321,6 +323,13 @@ static void radon_alloc_all(radon *r, radon_ws **pws, int *ok)
     r->gspec = radon_alloc(ng * nh * 2 * sizeof(float), 1, ok);
     r->p_in = radon_alloc(ns * sizeof(float), 1, ok);
     r->p_spec = radon_alloc((ns / 2 + 1) * 2 * sizeof(float), 1, ok);
+    /* the other pool threads' 1-D scratch (radon_spec_to_proj) */
+    int nt = r->pool ? tpool_size(r->pool) : 1;
+    r->np1 = nt < RADON_MAX_POOL ? nt : RADON_MAX_POOL;
+    for (int t = 1; t < r->np1; t++) {
+        r->p1_in[t] = radon_alloc(ns * sizeof(float), 1, ok);
+        r->p1_spec[t] = radon_alloc((ns / 2 + 1) * 2 * sizeof(float), 1, ok);
+    }
 }
 
 /* The angles' cosines and sines, and each row's extent inside the disc
@@ -499,22 +508,6 @@ int radon_project_spec_ws(const radon *r, radon_ws *ws, const float *img,
         return SL_EINVAL;
     radon_spatial_project_with(r->sp, ws->sp_scratch, img, ws->proj);
     proj_to_spec(r, ws->p_in, ws->p_spec, ws->proj, spec);
-    return SL_OK;
-}
-
-int radon_spec_to_proj(radon *r, const float complex *spec, float *proj)
-{
-    int nh = r->ns / 2 + 1;
-    for (int k = 0; k < r->nang; k++) {
-        for (int j = 0; j < nh; j++) {
-            float sg = ((j & 1) ? -1.0f : 1.0f) / r->ns;
-            float complex v = j < r->nf ? spec[(size_t)k * r->nf + j] : 0;
-            r->p_spec[2 * j] = sg * crealf(v);
-            r->p_spec[2 * j + 1] = sg * cimagf(v);
-        }
-        fftwf_execute(r->p_c2r);
-        memcpy(proj + (size_t)k * r->ns, r->p_in, r->ns * sizeof(float));
-    }
     return SL_OK;
 }
 

@@ -1,7 +1,8 @@
 /* radon_batch.c - the radon handle's FFT plans as batches in chunks
  * (radon_int.h, radon_batch), and the gridding's sample lists per column
  * chunk: what lets one image's Fourier slices and gridding FBP run on
- * every thread of a pool (radon_slice.c).
+ * every thread of a pool (radon_slice.c); and radon_spec_to_proj, by
+ * angles on the pool (each thread with its own 1-D scratch).
  *
  * Why chunks: a single image's transforms (the reprojection rounds'
  * slices and FBPs, the result's FBP) ran on one thread while the other
@@ -12,7 +13,9 @@
  */
 #include "radon_int.h"
 
+#include <complex.h>
 #include <fftw3.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -165,4 +168,53 @@ int radon_grid_lists(radon *r)
     }
     free(fill);
     return ok ? SL_OK : SL_ENOMEM;
+}
+
+/* ---- spectra to projections, per angle on the pool --------------------- */
+
+/* Angles k0..k1-1 through the 1-D c2r plan on one thread's scratch. */
+static void to_proj(const radon *r, float *in, float *sp, const float complex *spec,
+                    float *proj, int k0, int k1)
+{
+    int nh = r->ns / 2 + 1;
+    for (int k = k0; k < k1; k++) {
+        for (int j = 0; j < nh; j++) {
+            float sg = ((j & 1) ? -1.0f : 1.0f) / r->ns;
+            float complex v = j < r->nf ? spec[(size_t)k * r->nf + j] : 0;
+            sp[2 * j] = sg * crealf(v);
+            sp[2 * j + 1] = sg * cimagf(v);
+        }
+        fftwf_execute_dft_c2r(r->p_c2r, (fftwf_complex *)sp, in);
+        memcpy(proj + (size_t)k * r->ns, in, r->ns * sizeof(float));
+    }
+}
+
+enum { PROJ_TASK = 16 };
+typedef struct proj_job {
+    radon *r;
+    const float complex *spec;
+    float *proj;
+    atomic_int next;
+} proj_job;
+
+static void proj_run(void *ctx, int tid, int n)
+{
+    proj_job *j = ctx;
+    radon *r = j->r;
+    float *in = tid ? r->p1_in[tid] : r->p_in, *sp = tid ? r->p1_spec[tid] : r->p_spec;
+    (void)n;
+    for (int k0; (k0 = atomic_fetch_add(&j->next, PROJ_TASK)) < r->nang;)
+        to_proj(r, in, sp, j->spec, j->proj, k0,
+                k0 + PROJ_TASK < r->nang ? k0 + PROJ_TASK : r->nang);
+}
+
+int radon_spec_to_proj(radon *r, const float complex *spec, float *proj)
+{
+    proj_job j = {.r = r, .spec = spec, .proj = proj};
+    atomic_init(&j.next, 0);
+    if (r->pool && tpool_size(r->pool) > 1 && tpool_size(r->pool) == r->np1)
+        tpool_run(r->pool, proj_run, &j);
+    else
+        to_proj(r, r->p_in, r->p_spec, spec, proj, 0, r->nang);
+    return SL_OK;
 }

@@ -20,7 +20,7 @@
  * multiple of RADON_CHUNK elements, so every chunk has chunk 0's
  * alignment and the plans apply.  The bits of a transform do not depend
  * on which chunk or thread runs it. */
-enum { RADON_CHUNK = 16 };
+enum { RADON_CHUNK = 16, RADON_MAX_POOL = 64 };
 typedef enum { RADON_R2C, RADON_C2C_FWD, RADON_C2C_INV, RADON_C2R } radon_kind;
 typedef struct radon_batch {
     fftwf_plan full, tail;    /* RADON_CHUNK transforms; the last chunk's (NULL: full) */
@@ -68,6 +68,8 @@ struct radon {
     float *p_in;
     float *p_spec;
     fftwf_plan p_r2c, p_c2r;
+    int np1;                  /* threads with 1-D scratch: 0 uses p_in, p_spec */
+    float *p1_in[RADON_MAX_POOL], *p1_spec[RADON_MAX_POOL];
     radon_spatial *sp;        /* projector and FBP (radon_spatial.c) */
     /* iterative */
     float *it_x, *it_z, *it_g;

@@ -4,6 +4,7 @@
  * inverse Radon transform.  Cost at TSM-180, 200^2: ~50 ms, of which the
  * phases ~42 ms (tsm.c's header has the whole budget). */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -159,15 +160,34 @@ static void result_spectra(tsm *t)
  * same object): a per-angle shift measured on the whole profile rather
  * than on its bright part; then the reprojection rounds.  *moved: whether
  * the last two ran (the object may have moved as a whole). */
+typedef struct centre_job {
+    tsm *t;
+    double cfrac;
+    atomic_int next;
+} centre_job;
+
+/* tpool job: each angle claimed shifted to its projection's centroid
+ * (an angle's row is its own: the same bits on any thread). */
+static void centre_run(void *ctx, int tid, int n)
+{
+    centre_job *j = ctx;
+    tsm *t = j->t;
+    (void)tid, (void)n;
+    for (int a0; (a0 = atomic_fetch_add(&j->next, 8)) < t->nang;)
+        for (int a = a0; a < a0 + 8 && a < t->nang; a++)
+            tsm_phase_shift(t->ospec + (size_t)a * t->nf, t->nf, t->ns,
+                            tsm_phase_centroid(t->proj + (size_t)a * t->ns, t->ns, j->cfrac));
+}
+
 static int result_align(tsm *t, float *img, double cfrac, int *moved)
 {
     int nf = t->nf, ns = t->ns, st;
     for (int pass = 0; pass < 2; pass++) {
         if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
             return st;
-        for (int a = 0; a < t->nang; a++)
-            tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns,
-                            tsm_phase_centroid(t->proj + (size_t)a * ns, ns, cfrac));
+        centre_job cj = {.t = t, .cfrac = cfrac};
+        atomic_init(&cj.next, 0);
+        tpool_run(t->pool, centre_run, &cj);
     }
     double adeg = t->o.align_deg > 0 ? t->o.align_deg : t->o.align_deg < 0 ? 0.0 : 8.0;
     int nbr = (int)floor(adeg * t->nang / 180.0 + 1e-9);

@@ -378,9 +378,10 @@ TEST(iterative_beats_fbp_at_18_angles)
     CHECK(mn >= 0, "negative pixel %g with nonneg", mn);
 }
 
-/* A pool (radon_opts.pool) spreads one image's slices, gridding FBP and
- * iterative inverse, and the tables at radon_new, over its threads: the
- * bits must be those of one thread, for any pool size.  The sizes give
+/* A pool (radon_opts.pool) spreads one image's slices, gridding FBP,
+ * iterative inverse and projections from spectra, and the tables at
+ * radon_new, over its threads: the bits must be those of one thread, for
+ * any pool size.  The sizes give
  * column and row chunks with tails (45 x 38: a 90 grid, 46 columns, 19 +
  * 19 rows) and samples that straddle chunks and reach kx = 0 and ng/2. */
 TEST(pool_same_bits_as_one_thread)
@@ -388,8 +389,9 @@ TEST(pool_same_bits_as_one_thread)
     const int sizes[][3] = {{45, 38, 7}, {45, 38, 90}, {100, 100, 180}};
     for (int c = 0; c < 3; c++) {
         int w = sizes[c][0], h = sizes[c][1], nang = sizes[c][2];
-        float *img = malloc(sizeof(float) * w * h), *out[3];
+        float *img = malloc(sizeof(float) * w * h), *out[3], *prj[3];
         float complex *sp[3];
+        size_t npr = 0;
         gaussians(img, w, h, phantom, NPH);
         size_t nsp = 0;
         for (int p = 0; p < 3; p++) {   /* no pool, 2 threads, 3 threads */
@@ -403,6 +405,9 @@ TEST(pool_same_bits_as_one_thread)
             sp[p] = malloc(sizeof(float complex) * nsp);
             out[p] = malloc(sizeof(float) * 2 * w * h);
             CHECK(radon_slices(r, img, sp[p]) == SL_OK, "radon_slices");
+            npr = (size_t)nang * radon_nproj(r);
+            prj[p] = malloc(sizeof(float) * npr);
+            CHECK(radon_spec_to_proj(r, sp[p], prj[p]) == SL_OK, "radon_spec_to_proj");
             CHECK(radon_fbp_slices(r, sp[p], out[p]) == SL_OK, "radon_fbp_slices");
             CHECK(radon_invert_iter(r, sp[p], 5, 1, out[p] + w * h) == SL_OK, "iterative");
             radon_free(r);
@@ -411,6 +416,8 @@ TEST(pool_same_bits_as_one_thread)
         for (int p = 1; p < 3; p++) {
             CHECK(memcmp(sp[0], sp[p], nsp * sizeof *sp[0]) == 0,
                   "%dx%d, %d angles: slices on %d threads differ from one", w, h, nang, p + 1);
+            CHECK(memcmp(prj[0], prj[p], sizeof(float) * npr) == 0,
+                  "%dx%d, %d angles: projections on %d threads differ", w, h, nang, p + 1);
             CHECK(memcmp(out[0], out[p], sizeof(float) * w * h) == 0,
                   "%dx%d, %d angles: FBP on %d threads differs from one", w, h, nang, p + 1);
             CHECK(memcmp(out[0] + w * h, out[p] + w * h, sizeof(float) * w * h) == 0,
@@ -421,7 +428,7 @@ TEST(pool_same_bits_as_one_thread)
         printf("    %dx%d, %d angles: pooled bits equal; FBP c = %.4f\n", w, h, nang, cf);
         CHECK(cf > (nang > 50 ? 0.99 : 0.5), "FBP c %.4f", cf);
         for (int p = 0; p < 3; p++)
-            free(sp[p]), free(out[p]);
+            free(sp[p]), free(out[p]), free(prj[p]);
         free(img);
     }
 }

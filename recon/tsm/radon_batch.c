@@ -73,11 +73,21 @@ void radon_batch_run(const radon_batch *b, int c, float *in, float *out)
     }
 }
 
+int radon_batch_like(radon_batch *b, const radon_batch *like, float *in, float *out)
+{
+    if (!like->full || fftwf_alignment_of(in) != fftwf_alignment_of(like->in) ||
+        fftwf_alignment_of(out) != fftwf_alignment_of(like->out))
+        return 0;
+    *b = *like;
+    b->in = in, b->out = out, b->shared = 1;
+    return 1;
+}
+
 void radon_batch_free(radon_batch *b)
 {
-    if (b->full)
+    if (b->full && !b->shared)
         fftwf_destroy_plan(b->full);
-    if (b->tail)
+    if (b->tail && !b->shared)
         fftwf_destroy_plan(b->tail);
     b->full = b->tail = NULL;
 }
@@ -94,17 +104,21 @@ int radon_plan_ffts(radon *r, radon_ws *pws, unsigned flags)
     int h = r->h, kw = r->kw, ns = r->ns;
     int n1 = (int)ng, hb = h - h / 2, ha = h / 2, inh = (int)nh, ild = r->ld;
     float *gs = r->gspec, *wr = pws->rows, *wsp = pws->spec;
+    /* block b shares block a's plans when the frame height is even and
+     * the alignments agree (fewer plans to measure on a cold start) */
     int ok = radon_batch_plan(&r->fr_a, RADON_R2C, n1, hb, pws->grid + (size_t)ha * ng, 1, n1,
                               wr, ild, 1, flags);
-    ok &= radon_batch_plan(&r->fr_b, RADON_R2C, n1, ha, pws->grid, 1, n1,
-                           wr + 2 * (ng - ha), ild, 1, flags);
+    if (ha != hb || !radon_batch_like(&r->fr_b, &r->fr_a, pws->grid, wr + 2 * (ng - ha)))
+        ok &= radon_batch_plan(&r->fr_b, RADON_R2C, n1, ha, pws->grid, 1, n1,
+                               wr + 2 * (ng - ha), ild, 1, flags);
     ok &= radon_batch_plan(&r->fc, RADON_C2C_FWD, n1, inh, wr, 1, ild,
                            wsp + 2 * ((size_t)kw * ild + kw), 1, ild, flags);
     ok &= radon_batch_plan(&r->ic, RADON_C2C_INV, n1, inh, gs, inh, 1, gs, inh, 1, flags);
     ok &= radon_batch_plan(&r->ir_a, RADON_C2R, n1, hb, gs, 1, inh,
                            r->grid_out + (size_t)ha * ng, 1, n1, flags);
-    ok &= radon_batch_plan(&r->ir_b, RADON_C2R, n1, ha, gs + 2 * (ng - ha) * nh, 1, inh,
-                           r->grid_out, 1, n1, flags);
+    if (ha != hb || !radon_batch_like(&r->ir_b, &r->ir_a, gs + 2 * (ng - ha) * nh, r->grid_out))
+        ok &= radon_batch_plan(&r->ir_b, RADON_C2R, n1, ha, gs + 2 * (ng - ha) * nh, 1, inh,
+                               r->grid_out, 1, n1, flags);
     r->p_r2c = fftwf_plan_dft_r2c_1d(ns, r->p_in, (fftwf_complex *)r->p_spec, flags);
     r->p_c2r = fftwf_plan_dft_c2r_1d(ns, (fftwf_complex *)r->p_spec, r->p_in, flags);
     return ok && r->p_r2c && r->p_c2r;

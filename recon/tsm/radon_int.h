@@ -24,6 +24,7 @@ enum { RADON_CHUNK = 16, RADON_MAX_POOL = 64 };
 typedef enum { RADON_R2C, RADON_C2C_FWD, RADON_C2C_INV, RADON_C2R } radon_kind;
 typedef struct radon_batch {
     fftwf_plan full, tail;    /* RADON_CHUNK transforms; the last chunk's (NULL: full) */
+    int shared;               /* the plans are another batch's (radon_batch_like) */
     radon_kind kind;
     int count, nchunk;        /* transforms, chunks */
     float *in, *out;          /* chunk 0's arrays, as planned */
@@ -107,6 +108,10 @@ static inline void *radon_alloc(size_t n, int fftw, int *ok)
  * c on chunk 0's arrays shifted by the same offsets: radon_batch_run. */
 int radon_batch_plan(radon_batch *b, radon_kind kind, int n, int count, float *in, int is,
                      int idist, float *out, int os, int odist, unsigned flags);
+/* b as `like` on other arrays, sharing its plans when they apply (the
+ * same transforms, and in and out of like's alignment for FFTW): 1, else
+ * 0 and b untouched. */
+int radon_batch_like(radon_batch *b, const radon_batch *like, float *in, float *out);
 /* Chunk c of b on in and out, arrays laid out as the planned ones. */
 void radon_batch_run(const radon_batch *b, int c, float *in, float *out);
 void radon_batch_free(radon_batch *b);

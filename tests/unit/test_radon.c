@@ -184,7 +184,7 @@ static void *ws_thread(void *arg)
 
 TEST(slices_ws_threads_and_odd_sizes)
 {
-    int w = 45, h = 38, nangs[2] = {7, 90};
+    int w = 45, h = 37, nangs[2] = {7, 90};   /* odd: the row blocks differ */
     float *img[2] = {malloc(sizeof(float) * w * h), malloc(sizeof(float) * w * h)};
     unsigned s = 777;
     for (int k = 0; k < 2; k++)
@@ -383,11 +383,13 @@ TEST(iterative_beats_fbp_at_18_angles)
  * radon_new, over its threads: the bits must be those of one thread, for
  * any pool size.  The sizes give
  * column and row chunks with tails (45 x 38: a 90 grid, 46 columns, 19 +
- * 19 rows) and samples that straddle chunks and reach kx = 0 and ng/2. */
+ * 19 rows), row blocks of two heights (45 x 37), blocks sharing their
+ * plans (100 x 100) and samples that straddle chunks and reach kx = 0 and
+ * ng/2. */
 TEST(pool_same_bits_as_one_thread)
 {
-    const int sizes[][3] = {{45, 38, 7}, {45, 38, 90}, {100, 100, 180}};
-    for (int c = 0; c < 3; c++) {
+    const int sizes[][3] = {{45, 38, 7}, {45, 38, 90}, {45, 37, 90}, {100, 100, 180}};
+    for (int c = 0; c < 4; c++) {
         int w = sizes[c][0], h = sizes[c][1], nang = sizes[c][2];
         float *img = malloc(sizeof(float) * w * h), *out[3], *prj[3];
         float complex *sp[3];

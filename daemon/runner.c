@@ -32,8 +32,15 @@ static void note_state(void *runner_arg, const char *uuid, catalog_state st)
 {
     runner *r = runner_arg;
     g_mutex_lock(&r->mu);
-    if (r->cur && !strcmp(r->cur->uuid, uuid))
+    if (r->cur && !strcmp(r->cur->uuid, uuid)) {
         r->st.state = st;
+        /* Ended: status says so before the event goes out (runstate_set
+         * broadcasts after this), not once the thread has tidied up; a
+         * client that read the end and asked for status at once saw the
+         * run still current. */
+        if (catalog_state_is_terminal(st))
+            r->st.current[0] = '\0';
+    }
     g_mutex_unlock(&r->mu);
 }
 

@@ -374,28 +374,50 @@ static float median_sel(const float *a, const float *key, double below,
 /* Sky: pixels whose 3x3-smoothed long exposure is within the background's
  * noise; their mean level and temporal rms.  bg is the long exposure's
  * 25th percentile, sigma_t the temporal rms of the dimmer half. */
+typedef struct band_job {
+    rawstats *r;
+    const float *M, *S, *mloc, *sloc;
+    double bg, sigma_t, thr;
+    int nstuck[RS_BANDS], nhot[RS_BANDS], ndead[RS_BANDS];
+    atomic_int next;
+} band_job;
+
+/* tpool job: rows of the bands claimed marked sky (a pixel's own test,
+ * the same on any thread). */
+static void sky_run(void *ctx, int tid, int nthr)
+{
+    band_job *j = ctx;
+    rawstats *r = j->r;
+    int w = r->w, h = r->h;
+    (void)tid, (void)nthr;
+    for (int b; (b = atomic_fetch_add(&j->next, 1)) < RS_BANDS;)
+        for (int y = band_row(h, b); y < band_row(h, b + 1); y++)
+            for (int x = 0; x < w; x++) {
+                double s = 0;
+                int c = 0;
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++) {
+                        int xx = x + dx, yy = y + dy;
+                        if (xx >= 0 && yy >= 0 && xx < w && yy < h)
+                            s += j->M[(size_t)yy * w + xx], c++;
+                    }
+                size_t i = (size_t)y * w + x;
+                r->sky[i] = !r->bad[i] && s / c <= j->thr;
+            }
+}
+
 static void find_sky(rawstats *r, const float *M, const float *S, double bg,
                      double sigma_t, float *scratch)
 {
-    int w = r->w, h = r->h, K = r->nframes;
-    double thr = bg + 5 * sigma_t / sqrt(9.0 * K) + 0.5 * r->quantum;
-    double sum = 0;
+    int K = r->nframes;
+    band_job j = {.r = r, .M = M, .thr = bg + 5 * sigma_t / sqrt(9.0 * K) + 0.5 * r->quantum};
+    atomic_init(&j.next, 0);
+    run_bands(r, sky_run, &j);
+    double sum = 0;   /* in pixel order, as before the marks were banded */
     int ns = 0;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            double s = 0;
-            int c = 0;
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++) {
-                    int xx = x + dx, yy = y + dy;
-                    if (xx >= 0 && yy >= 0 && xx < w && yy < h)
-                        s += M[(size_t)yy * w + xx], c++;
-                }
-            size_t i = (size_t)y * w + x;
-            r->sky[i] = !r->bad[i] && s / c <= thr;
-            if (r->sky[i])
-                scratch[ns++] = S[i], sum += M[i];
-        }
+    for (size_t i = 0, n = (size_t)r->w * r->h; i < n; i++)
+        if (r->sky[i])
+            scratch[ns++] = S[i], sum += M[i];
     r->res.nsky = ns;
     r->res.sky_level = ns ? sum / ns : bg;
     r->res.sky_rms = ns ? stats_median_inplace(scratch, (size_t)ns) : sigma_t;
@@ -432,30 +454,50 @@ static int is_static(const rawstats *r, const float *M, const float *S,
  * one side of their median in all of K frames with probability 2^-K,
  * about one pixel of a 1024^2 frame at K = 20 (clipped or quantised
  * noise is far from Gaussian, so the standard errors alone do not say). */
+static void bad_run(void *ctx, int tid, int nthr)
+{
+    band_job *j = ctx;
+    rawstats *r = j->r;
+    const float *M = j->M, *S = j->S, *mloc = j->mloc, *sloc = j->sloc;
+    double bg = j->bg, sigma_t = j->sigma_t;
+    int K = r->nframes, stat = r->res.static_scene;
+    double qn = r->quantum / sqrt(12.0);
+    (void)tid, (void)nthr;
+    for (int b; (b = atomic_fetch_add(&j->next, 1)) < RS_BANDS;) {
+        size_t i0 = (size_t)band_row(r->h, b) * r->w, i1 = (size_t)band_row(r->h, b + 1) * r->w;
+        for (size_t i = i0; i < i1; i++) {
+            double res = M[i] - mloc[i], local = fabs(mloc[i] - bg);
+            double se = sqrt(((double)S[i] * S[i] + (double)sloc[i] * sloc[i] / 8 +
+                              qn * qn + 1e-30) / K);
+            int stuck = K >= 4 && r->vmin[i] == r->vmax[i] && sloc[i] > 0 &&
+                        fabs(res) > fmax(fmax(5 * sigma_t, 2 * r->quantum), 0.1 * local);
+            int odd = !stat && K >= 20 && fabs(res) > 8 * se && fabs(res) > 0.3 * local;
+            int hot = odd && res > 0 && r->vmin[i] - bg > 0.5 * res;
+            int dead = odd && res < 0 && r->vmax[i] < mloc[i] + 0.5 * res;
+            if (stuck)
+                j->nstuck[b]++;
+            else if (hot)
+                j->nhot[b]++;
+            else if (dead)
+                j->ndead[b]++;
+            r->bad[i] = (uint8_t)(stuck || hot || dead);
+        }
+    }
+}
+
+/* Every pixel's own test, in bands on the pool; the counts summed. */
 static void mark_bad(rawstats *r, const float *M, const float *S,
                      const float *mloc, const float *sloc, double bg,
                      double sigma_t)
 {
-    rawstats_result *s = &r->res;
-    int K = r->nframes;
-    double qn = r->quantum / sqrt(12.0);
-    for (size_t i = 0, n = (size_t)r->w * r->h; i < n; i++) {
-        double res = M[i] - mloc[i], local = fabs(mloc[i] - bg);
-        double se = sqrt(((double)S[i] * S[i] + (double)sloc[i] * sloc[i] / 8 +
-                          qn * qn + 1e-30) / K);
-        int stuck = K >= 4 && r->vmin[i] == r->vmax[i] && sloc[i] > 0 &&
-                    fabs(res) > fmax(fmax(5 * sigma_t, 2 * r->quantum), 0.1 * local);
-        int odd = !s->static_scene && K >= 20 && fabs(res) > 8 * se &&
-                  fabs(res) > 0.3 * local;
-        int hot = odd && res > 0 && r->vmin[i] - bg > 0.5 * res;
-        int dead = odd && res < 0 && r->vmax[i] < mloc[i] + 0.5 * res;
-        if (stuck)
-            s->nstuck++;
-        else if (hot)
-            s->nhot++;
-        else if (dead)
-            s->ndead++;
-        r->bad[i] = (uint8_t)(stuck || hot || dead);
+    band_job j = {.r = r, .M = M, .S = S, .mloc = mloc, .sloc = sloc, .bg = bg,
+                  .sigma_t = sigma_t};
+    atomic_init(&j.next, 0);
+    run_bands(r, bad_run, &j);
+    for (int b = 0; b < RS_BANDS; b++) {
+        r->res.nstuck += j.nstuck[b];
+        r->res.nhot += j.nhot[b];
+        r->res.ndead += j.ndead[b];
     }
 }
 

@@ -7,6 +7,7 @@
 #include "tpool.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -133,4 +134,10 @@ void tpool_run(tpool *p, tpool_fn fn, void *ctx)
     tpool_submit(p, fn, ctx);
     fn(ctx, 0, p->n);
     tpool_wait(p);
+}
+
+void tpool_pause(int *spins)
+{
+    if (++*spins > 64)
+        sched_yield();
 }

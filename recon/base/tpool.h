@@ -40,4 +40,10 @@ void tpool_run(tpool *p, tpool_fn fn, void *ctx);
 void tpool_submit(tpool *p, tpool_fn fn, void *ctx);
 void tpool_wait(tpool *p);
 
+/* Inside a job, one step of waiting for work another thread of it is
+ * doing: spin first, then give the core up (more threads than cores, or
+ * a reader beside them, must not starve the one waited for).  *spins
+ * starts at 0 for each wait. */
+void tpool_pause(int *spins);
+
 #endif

@@ -33,7 +33,6 @@
 #include "phasor_int.h"
 
 #include <math.h>
-#include <sched.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 
@@ -166,21 +165,13 @@ typedef struct recur_job {
     atomic_int *done;       /* per block: its parts prepared */
 } recur_job;
 
-/* Wait a little: spin first, then give the core up (more threads than
- * cores, or a reader beside them, must not starve the one waited for). */
-static void pause_spin(int *spins)
-{
-    if (++*spins > 64)
-        sched_yield();
-}
-
 /* Prepare part t % PREP_PARTS of block t / PREP_PARTS, once the
  * recursion has passed the block two before it. */
 static void prep_ticket(recur_job *r, int t)
 {
     int p = t / PREP_PARTS, k = t % PREP_PARTS, spins = 0;
     while (atomic_load_explicit(&r->consumed, memory_order_acquire) < p - 1)
-        pause_spin(&spins);
+        tpool_pause(&spins);
     int j0 = r->bs[p], cut = r->bs[p > 0 ? p - 1 : 0];
     int64_t span = r->bs[p + 1] - j0;
     int a = j0 + (int)(span * k / PREP_PARTS), b = j0 + (int)(span * (k + 1) / PREP_PARTS);
@@ -209,7 +200,7 @@ static void recur_run(recur_job *r, double *wsum, double *miss)
                 if (atomic_compare_exchange_weak(&r->ticket, &t, t + 1))
                     prep_ticket(r, t);
             } else {
-                pause_spin(&spins);
+                tpool_pause(&spins);
             }
         }
         consume(r->g, &r->rs, r->bs[p], r->bs[p + 1], r->buf[p % 2], wsum, miss);

@@ -45,7 +45,7 @@ int radon_batch_plan(radon_batch *b, radon_kind kind, int n, int count, float *i
                      int idist, float *out, int os, int odist, unsigned flags)
 {
     memset(b, 0, sizeof *b);
-    b->kind = kind, b->count = count, b->in = in, b->out = out;
+    b->kind = kind, b->in = in, b->out = out;
     if (count < 1)
         return 1;   /* an empty block (a 1-row frame's half): nothing to run */
     b->nchunk = (count + RADON_CHUNK - 1) / RADON_CHUNK;

@@ -26,7 +26,7 @@ typedef struct radon_batch {
     fftwf_plan full, tail;    /* RADON_CHUNK transforms; the last chunk's (NULL: full) */
     int shared;               /* the plans are another batch's (radon_batch_like) */
     radon_kind kind;
-    int count, nchunk;        /* transforms, chunks */
+    int nchunk;               /* chunks of the batch's transforms */
     float *in, *out;          /* chunk 0's arrays, as planned */
     size_t in_step, out_step;
 } radon_batch;

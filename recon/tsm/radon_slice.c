@@ -33,7 +33,6 @@
 
 #include <fftw3.h>
 #include <math.h>
-#include <sched.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -318,14 +317,6 @@ struct slice_job {
     atomic_int next, done[MAX_PHASES];
 };
 
-/* Wait a little: spin first, then give the core up (a thread waited for
- * may share this core with a reader). */
-static void pause_spin(int *spins)
-{
-    if (++*spins > 64)
-        sched_yield();
-}
-
 static void phased_job(void *ctx, int tid, int n)
 {
     slice_job *j = ctx;
@@ -337,7 +328,7 @@ static void phased_job(void *ctx, int tid, int n)
         int first = p ? j->end[p - 1] : 0, before = p > 1 ? j->end[p - 2] : 0;
         while (p && atomic_load_explicit(&j->done[p - 1], memory_order_acquire) <
                         first - before)
-            pause_spin(&spins);
+            tpool_pause(&spins);
         j->task[p](j, t - first);
         atomic_fetch_add_explicit(&j->done[p], 1, memory_order_release);
     }

@@ -371,9 +371,7 @@ static float median_sel(const float *a, const float *key, double below,
     return stats_median_inplace(scratch, k);
 }
 
-/* Sky: pixels whose 3x3-smoothed long exposure is within the background's
- * noise; their mean level and temporal rms.  bg is the long exposure's
- * 25th percentile, sigma_t the temporal rms of the dimmer half. */
+/* The finish's per-pixel passes in bands of rows (run_bands). */
 typedef struct band_job {
     rawstats *r;
     const float *M, *S, *mloc, *sloc;
@@ -406,6 +404,9 @@ static void sky_run(void *ctx, int tid, int nthr)
             }
 }
 
+/* Sky: pixels whose 3x3-smoothed long exposure is within the background's
+ * noise; their mean level and temporal rms.  bg is the long exposure's
+ * 25th percentile, sigma_t the temporal rms of the dimmer half. */
 static void find_sky(rawstats *r, const float *M, const float *S, double bg,
                      double sigma_t, float *scratch)
 {

@@ -154,12 +154,6 @@ static void result_spectra(tsm *t)
     }
 }
 
-/* (5) centre each projection on its centroid: twice, the second pass
- * measures with the object already away from the wrap point.  Then align
- * each to the sum of its neighbours within align_deg (they see nearly the
- * same object): a per-angle shift measured on the whole profile rather
- * than on its bright part; then the reprojection rounds.  *moved: whether
- * the last two ran (the object may have moved as a whole). */
 typedef struct centre_job {
     tsm *t;
     double cfrac;
@@ -179,6 +173,12 @@ static void centre_run(void *ctx, int tid, int n)
                             tsm_phase_centroid(t->proj + (size_t)a * t->ns, t->ns, j->cfrac));
 }
 
+/* (5) centre each projection on its centroid: twice, the second pass
+ * measures with the object already away from the wrap point.  Then align
+ * each to the sum of its neighbours within align_deg (they see nearly the
+ * same object): a per-angle shift measured on the whole profile rather
+ * than on its bright part; then the reprojection rounds.  *moved: whether
+ * the last two ran (the object may have moved as a whole). */
 static int result_align(tsm *t, float *img, double cfrac, int *moved)
 {
     int nf = t->nf, ns = t->ns, st;

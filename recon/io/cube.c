@@ -375,7 +375,12 @@ int cube_reader_seek(cube_reader *r, int k)
 {
     if (k < 0 || k > r->nframes)
         return sl_seterr(&r->err, SL_ERANGE, "frame %d outside 0..%d", k, r->nframes);
+    /* From the current file when k is not before it (frame - in_file is
+     * its first frame): readers taking every n-th frame of a sequence of
+     * many files seek per frame. */
     int cur = 0, first = 0;
+    if (k >= r->frame - r->in_file)
+        cur = r->cur, first = r->frame - r->in_file;
     while (cur < r->nfiles - 1 && first + r->files[cur].nframes <= k)
         first += r->files[cur++].nframes;
     if (cur != r->cur)
@@ -385,6 +390,31 @@ int cube_reader_seek(cube_reader *r, int k)
     r->frame = k;
     sl_clearerr(&r->err);
     return SL_OK;
+}
+
+int cube_reader_dup(cube_reader **out, const cube_reader *r, sl_err *err)
+{
+    *out = NULL;
+    cube_reader *d = malloc(sizeof *d);
+    if (!d)
+        return sl_seterr(err, SL_ENOMEM, "out of memory");
+    *d = *r;
+    d->fp = NULL;
+    d->cur = d->in_file = d->frame = 0;
+    sl_clearerr(&d->err);
+    d->nfiles = 0;
+    if (!(d->files = calloc((size_t)r->nfiles, sizeof *d->files)))
+        goto free_dup;
+    for (; d->nfiles < r->nfiles; d->nfiles++) {
+        d->files[d->nfiles] = r->files[d->nfiles];
+        if (!(d->files[d->nfiles].path = strdup(r->files[d->nfiles].path)))
+            goto free_dup;
+    }
+    *out = d;
+    return SL_OK;
+free_dup:
+    cube_reader_free(d);
+    return sl_seterr(err, SL_ENOMEM, "out of memory");
 }
 
 void cube_reader_free(cube_reader *r)

@@ -179,6 +179,10 @@ void cube_reader_rewind(cube_reader *r);
 int cube_reader_seek(cube_reader *r, int k);
 const char *cube_reader_errmsg(const cube_reader *r);
 void cube_reader_free(cube_reader *r);
+/* A second reader of r's sequence, at frame 0, sharing nothing with r (so
+ * each thread may read with its own): the files r scanned, not scanned
+ * again.  SL_ENOMEM. */
+int cube_reader_dup(cube_reader **out, const cube_reader *r, sl_err *err);
 
 /* Read every frame into a new seq (*out owned by the caller). */
 int cube_read(seq **out, cube_meta *meta_or_NULL, const char *const *paths,

@@ -52,8 +52,9 @@ typedef struct stream {
     /* wall time in stream_feed: reading and cleaning frames (read_s) and
      * the estimator's add (frame_s); pipeline_report.stage_s */
     double read_s, frame_s;
-    int ahead;            /* read ahead on a thread of its own (more than
+    int ahead;            /* read ahead on threads of their own (more than
                              one thread allowed) */
+    int readers;          /* those threads: 1 + (threads - 1) / 4 */
     int ahead_want;       /* frames the next pass's add may take between
                              returns (0: a few); pipeline_ahead.c */
     float *ring;          /* the read-ahead ring, ring_slots frames */
@@ -79,8 +80,9 @@ int stream_feed(stream *s, add_fn add, void *h, const char *what, sl_err *err);
 /* CLOCK_MONOTONIC in seconds. */
 double stream_now_s(void);
 /* A pass over frames [k0, k1) whole (s's range, or the first frames for
- * the detector's learning), read and cleaned on a thread of its own while
- * add runs (pipeline_ahead.c); s->frame is not used.  *ran 0 (and SL_OK)
+ * the detector's learning), read and cleaned on s->readers threads of
+ * their own while add runs, added in order (pipeline_ahead.c); s->frame
+ * is not used.  *ran 0 (and SL_OK)
  * when there was no thread or ring to be had: the caller reads serially. */
 int stream_feed_ahead(stream *s, int k0, int k1, add_fn add, void *h, const char *what,
                       sl_err *err, int *ran);

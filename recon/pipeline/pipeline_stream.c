@@ -268,6 +268,7 @@ int stream_open(stream *s, const char *const *paths, int npaths,
     s->progress = o->progress;
     s->progress_ctx = o->progress_ctx;
     s->ahead = o->nthreads != 1;
+    s->readers = o->nthreads > 1 ? 1 + (o->nthreads - 1) / 4 : 1;
     s->feed_total = 2.0 * s->n; /* until the plan is known */
     s->frame = malloc(sizeof(float) * s->w * s->h);
     if (!s->frame) {

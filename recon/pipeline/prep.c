@@ -180,6 +180,41 @@ void prep_free(prep *p)
     free(p);
 }
 
+/* A copy of n bytes of src (NULL for NULL); *ok = 0 when out of memory. */
+static void *dup_block(const void *src, size_t n, int *ok)
+{
+    void *d = src ? malloc(n ? n : 1) : NULL;
+    if (d)
+        memcpy(d, src, n);
+    else if (src)
+        *ok = 0;
+    return d;
+}
+
+int prep_dup(prep **out, const prep *p, sl_err *err)
+{
+    *out = NULL;
+    prep *d = malloc(sizeof *d);
+    if (!d)
+        return sl_seterr(err, SL_ENOMEM, "out of memory for a copy of the cleaning");
+    *d = *p;
+    size_t n = (size_t)p->w * p->h, f = sizeof(float);
+    int b = p->o.border_px, nb = 2 * b * p->w + 2 * b * (p->h - 2 * b), ok = 1;
+    d->dark = dup_block(p->dark, n * f, &ok);
+    d->invflat = dup_block(p->invflat, n * f, &ok);
+    d->win = dup_block(p->win, n * f, &ok);
+    d->bad = dup_block(p->bad, n, &ok);
+    d->border = dup_block(p->border, f * (size_t)(nb > 0 ? nb : 1), &ok);
+    d->skyidx = dup_block(p->skyidx, sizeof(int) * (size_t)p->nsky, &ok);
+    d->shifted = dup_block(p->shifted, n * f, &ok);
+    if (!ok) {
+        prep_free(d);
+        return sl_seterr(err, SL_ENOMEM, "out of memory for a copy of the cleaning");
+    }
+    *out = d;
+    return SL_OK;
+}
+
 void prep_mark_bad(prep *p, int x, int y)
 {
     if (x < 0 || y < 0 || x >= p->w || y >= p->h)

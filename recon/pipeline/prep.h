@@ -69,6 +69,10 @@ typedef struct prep_stats {
 void prep_opts_defaults(prep_opts *o);
 int prep_new(prep **out, int w, int h, const prep_opts *o, sl_err *err);
 void prep_free(prep *p);
+/* A copy of p, calibrations, maps and scratch included: prep_frame writes
+ * p's scratch, so threads cleaning frames at once each need their own.
+ * SL_ENOMEM. */
+int prep_dup(prep **out, const prep *p, sl_err *err);
 const char *prep_errmsg(const prep *p);
 
 /* Mark pixel (x, y) bad by hand (e.g. from a bad-pixel file). */

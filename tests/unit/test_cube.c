@@ -419,6 +419,41 @@ TEST(frame_list_is_one_sequence_and_streams)
     tmp_remove(&d);
 }
 
+/* Seeking forwards, backwards and within a file of a four-file sequence
+ * gives each frame; a copy (cube_reader_dup) reads on its own, before
+ * and after the original is freed. */
+TEST(seek_any_order_and_dup)
+{
+    tmpdir d;
+    const char *paths[4];
+    seq *s = pattern_seq(9, 7, 6, -50);
+    cube_reader *r = NULL, *c = NULL;
+    sl_err e = {0};
+    float frame[63];
+    CHECK(tmp_make(&d), "mkdtemp");
+    int rc = write_split(&d, s, paths);
+    rc = rc ? rc : cube_reader_open(&r, paths, 4, 0, &e);
+    rc = rc ? rc : cube_reader_dup(&c, r, &e);
+    CHECK(rc == SL_OK, "rc %d %s", rc, e.msg);
+    static const int order[] = {5, 0, 3, 3, 1, 4, 2, 5};
+    for (int i = 0; i < 8 && rc == SL_OK; i++) {
+        rc = cube_reader_seek(c, order[i]);
+        rc = rc ? rc : cube_reader_next(c, frame);
+        CHECK(rc == SL_OK && !memcmp(frame, seq_frame(s, order[i]), sizeof frame),
+              "copy, seek %d: rc %d %s", order[i], rc, cube_reader_errmsg(c));
+        if (i == 3) {
+            CHECK(cube_reader_next(r, frame) == SL_OK &&
+                  !memcmp(frame, seq_frame(s, 0), sizeof frame), "the original's frame 0");
+            cube_reader_free(r);
+            r = NULL;
+        }
+    }
+    CHECK(cube_reader_next(c, frame) == SL_EEND, "the copy's end after frame 5");
+    cube_reader_free(c);
+    seq_free(s);
+    tmp_remove(&d);
+}
+
 TEST(glob_expands_in_strcmp_order)
 {
     static const char *names[] = {"g_10.fits", "g_b.fits", "g_01.fits",
@@ -797,7 +832,7 @@ TC_MAIN(TC_CASE(every_bitpix_round_trips_exactly),
         TC_CASE(meta_setters_validate_keys),
         TC_CASE(foreign_keywords_and_extension_data),
         TC_CASE(default_date_and_naxis),
-        TC_CASE(frame_list_is_one_sequence_and_streams),
+        TC_CASE(frame_list_is_one_sequence_and_streams), TC_CASE(seek_any_order_and_dup),
         TC_CASE(glob_expands_in_strcmp_order),
         TC_CASE(flushed_frames_survive_a_crash), TC_CASE(header_text_is_checked),
         TC_CASE(write_errors_are_reported),

@@ -14,13 +14,18 @@
 
 #define N 96
 
-/* Write a simulated cube (and its cophased image) to path.  Photon
- * statistics go in as the simulator's SIMPHOT/SIMGAIN, or with camera_hdr
- * as a camera's GAIN alone, as specklabd writes them (2 e-/ADU: the
- * frames are the photon counts halved). */
+/* What write_sim's camera adds: CAM_GAIN_HDR the photon statistics as a
+ * camera's GAIN alone, as specklabd writes them (2 e-/ADU: the frames
+ * are the photon counts halved), not the simulator's SIMPHOT/SIMGAIN;
+ * CAM_DEFECTS a bias, a 12-bit ADC, hot and dead pixels and an
+ * off-centre star. */
+enum { CAM_GAIN_HDR = 1, CAM_DEFECTS = 2 };
+
+/* Write a simulated cube (and its cophased image) to path. */
 static int write_sim(const char *path, const char *scene_name, double photons,
-                     uint64_t seed, int turbulence, int camera_hdr)
+                     uint64_t seed, int turbulence, unsigned camera)
 {
+    int camera_hdr = camera & CAM_GAIN_HDR;
     sl_err e;
     mask *m = NULL;
     scene *sc = NULL;
@@ -34,6 +39,10 @@ static int write_sim(const char *path, const char *scene_name, double photons,
     o.seed = seed;
     o.turbulence = turbulence;
     o.fftw_flags = FFTW_ESTIMATE;
+    if (camera & CAM_DEFECTS) {
+        o.bias_adu = 100, o.adc_bits = 12, o.hot_pixels = 12, o.dead_pixels = 4;
+        o.offset_x_px = 7, o.offset_y_px = -5;
+    }
     int rc = mask_named(&m, "nrm17", &e);
     if (rc == SL_OK)
         rc = scene_named(&sc, scene_name, 0.45, 250, 1.0, &e);
@@ -78,7 +87,7 @@ static int write_sim(const char *path, const char *scene_name, double photons,
 typedef struct tmp_cubes {
     char dir[24], path[2][64];
     int n;
-    int camera_hdr;   /* the next tmp_sim writes GAIN, not SIMPHOT */
+    unsigned camera;  /* the next tmp_sim's CAM_* */
 } tmp_cubes;
 
 static int tmp_sim(tmp_cubes *cubes, const char *scene_name, double photons, uint64_t seed)
@@ -95,7 +104,7 @@ static int tmp_sim(tmp_cubes *cubes, const char *scene_name, double photons, uin
     memcpy(dir, cubes->dir, sizeof dir);
     snprintf(cubes->path[i], sizeof cubes->path[i], "%s/%d.fits", dir, i);
     cubes->n++;
-    return write_sim(cubes->path[i], scene_name, photons, seed, 1, cubes->camera_hdr);
+    return write_sim(cubes->path[i], scene_name, photons, seed, 1, cubes->camera);
 }
 
 static void tmp_clean(tmp_cubes *cubes)
@@ -273,7 +282,7 @@ TEST(camera_gain_gives_photon_statistics)
 {
     tmp_cubes cubes = {0};
     int rc = tmp_sim(&cubes, "binary", 1e4, 3);
-    cubes.camera_hdr = 1;
+    cubes.camera = CAM_GAIN_HDR;
     if (rc == SL_OK)
         rc = tmp_sim(&cubes, "binary", 1e4, 3);
     double dm[2] = {NAN, NAN}, phot[2] = {NAN, NAN};
@@ -404,55 +413,102 @@ TEST(r2_bounded_by_memory)
           "bounded R2 %d: sep %.3f\", dm %.3f; truth 0.45\", 1", r2[1], sep[1], dm[1]);
 }
 
-/* 1 and 2 threads give the same image bit for bit: the frames read ahead
- * on a thread of their own (pipeline_ahead.c) against the serial pass,
- * and each estimator's own threads; and direct's closure-phase fit the
- * same binary. */
-TEST(images_equal_on_one_and_two_threads)
+/* Runs cube with method on each of nt thread counts; img[k] the image
+ * (malloc'd), det[k] the detector learnt, fit[k] direct's closure fit.
+ * 0 (noted) when a run fails. */
+static int run_threads(tc *t, const char *cube, int method, const int *threads, int nt,
+                       float **img, pipeline_detector_report *det, double (*fit)[6],
+                       size_t *npx)
+{
+    for (int k = 0; k < nt; k++) {
+        pipeline_opts o;
+        pipeline_opts_defaults(&o);
+        o.method = method, o.fftw_measure = 0, o.nthreads = threads[k];
+        o.closure_binary = method == PIPE_DIRECT;
+        pipeline_result r;
+        sl_err e;
+        const char *paths[] = {cube};
+        if (pipeline_run(paths, 1, &o, &r, &e) != SL_OK) {
+            tc_note(t, 0, __FILE__, __LINE__, "pipeline_run", "%s, %d threads: %s",
+                    pipeline_method_name(method), threads[k], e.msg);
+            return 0;
+        }
+        *npx = (size_t)r.width * r.height;
+        img[k] = malloc(*npx * sizeof *img[k]);
+        memcpy(img[k], r.image, *npx * sizeof *img[k]);
+        det[k] = r.report.detector;
+        const binary_result *c = &r.binary.closure;
+        double v[6] = {c->sep_px, c->pa_deg, c->dm_mag, r.binary.sep_err_px,
+                       r.binary.pa_err_deg, r.binary.dm_err_mag};
+        memcpy(fit[k], v, sizeof v);
+        pipeline_result_clear(&r);
+    }
+    return 1;
+}
+
+/* 1, 2 and 9 threads give the same image bit for bit: the frames read
+ * ahead by one reader thread (2 threads) or three (9: pipeline_ahead.c)
+ * against the serial pass, and each estimator's own threads; and direct's
+ * closure-phase fit the same binary. */
+TEST(images_equal_on_one_and_more_threads)
 {
     tmp_cubes cubes = {0};
     CHECK(tmp_sim(&cubes, "binary", 2000, 7) == SL_OK, "simulating");
     static const int methods[] = {PIPE_DIRECT, PIPE_TSM, PIPE_TSM_FOURIER};
+    static const int threads[] = {1, 2, 9};
     for (int m = 0; m < 3 && !t->failed; m++) {
-        float *img[2] = {NULL, NULL};
-        double fit[2][6] = {{0}};
+        float *img[3] = {NULL, NULL, NULL};
+        double fit[3][6] = {{0}};
+        pipeline_detector_report det[3];
         size_t npx = 0;
-        for (int k = 0; k < 2; k++) {
-            pipeline_opts o;
-            pipeline_opts_defaults(&o);
-            o.method = methods[m], o.fftw_measure = 0, o.nthreads = k + 1;
-            o.closure_binary = methods[m] == PIPE_DIRECT;
-            pipeline_result r;
-            sl_err e;
-            const char *paths[] = {cubes.path[0]};
-            if (pipeline_run(paths, 1, &o, &r, &e) != SL_OK) {
-                tc_note(t, 0, __FILE__, __LINE__, "pipeline_run", "%s, %d threads: %s",
-                        pipeline_method_name(methods[m]), k + 1, e.msg);
-                break;
-            }
-            npx = (size_t)r.width * r.height;
-            img[k] = malloc(npx * sizeof *img[k]);
-            memcpy(img[k], r.image, npx * sizeof *img[k]);
-            const binary_result *c = &r.binary.closure;
-            double v[6] = {c->sep_px, c->pa_deg, c->dm_mag, r.binary.sep_err_px,
-                           r.binary.pa_err_deg, r.binary.dm_err_mag};
-            memcpy(fit[k], v, sizeof v);
-            pipeline_result_clear(&r);
+        run_threads(t, cubes.path[0], methods[m], threads, 3, img, det, fit, &npx);
+        for (int k = 1; k < 3; k++) {
+            int same = img[0] && img[k] && memcmp(img[0], img[k], npx * sizeof *img[0]) == 0;
+            CHECK(same || t->failed, "%s: %d threads' image differs from 1 thread's",
+                  pipeline_method_name(methods[m]), threads[k]);
+            CHECK(memcmp(fit[0], fit[k], sizeof fit[0]) == 0, "%s: closure fit %.9g px on "
+                  "1 thread, %.9g on %d", pipeline_method_name(methods[m]), fit[0][0],
+                  fit[k][0], threads[k]);
         }
-        int same = img[0] && img[1] && memcmp(img[0], img[1], npx * sizeof *img[0]) == 0;
-        free(img[0]);
-        free(img[1]);
-        CHECK(same || t->failed, "%s: 2 threads' image differs from 1 thread's",
-              pipeline_method_name(methods[m]));
         CHECK(methods[m] != PIPE_DIRECT || fit[0][0] > 0, "direct: no closure fit to compare");
-        CHECK(memcmp(fit[0], fit[1], sizeof fit[0]) == 0, "%s: closure fit %.9g px on 1 thread, "
-              "%.9g on 2", pipeline_method_name(methods[m]), fit[0][0], fit[1][0]);
+        for (int k = 0; k < 3; k++)
+            free(img[k]);
     }
     tmp_clean(&cubes);
 }
 
+/* A camera's cube (bias, 12-bit ADC, hot and dead pixels, the star off
+ * centre, no simulator keywords): the cleaning's repairs and sky, made by
+ * three readers each with its own copy of the cleaning (9 threads), give
+ * the serial pass's image and detector. */
+TEST(camera_cube_equal_on_one_and_many_readers)
+{
+    tmp_cubes cubes = {.camera = CAM_GAIN_HDR | CAM_DEFECTS};
+    CHECK(tmp_sim(&cubes, "binary", 5000, 11) == SL_OK, "simulating");
+    static const int threads[] = {1, 9};
+    float *img[2] = {NULL, NULL};
+    double fit[2][6];
+    pipeline_detector_report det[2];
+    size_t npx = 0;
+    if (run_threads(t, cubes.path[0], PIPE_TSM_FOURIER, threads, 2, img, det, fit, &npx)) {
+        CHECK(det[0].learnt && det[0].nhot + det[0].ndead + det[0].nstuck > 0,
+              "no bad pixel learnt (hot %d dead %d stuck %d): the test cleans nothing",
+              det[0].nhot, det[0].ndead, det[0].nstuck);
+        CHECK(memcmp(&det[0], &det[1], sizeof det[0]) == 0, "detector: %d hot, sky %.9g "
+              "ADU on 1 thread; %d, %.9g on 9", det[0].nhot, det[0].sky_adu, det[1].nhot,
+              det[1].sky_adu);
+        CHECK(memcmp(img[0], img[1], npx * sizeof *img[0]) == 0,
+              "9 threads' image differs from 1 thread's");
+    }
+    free(img[0]);
+    free(img[1]);
+    tmp_clean(&cubes);
+}
+
 /* A frame the reader refuses mid-pass (NaN, cleaning off) stops the run
- * with the reader's message, read ahead or not, and nothing hangs. */
+ * with the reader's message, read ahead or not, and nothing hangs; with
+ * frames 9 and 10 refused by different readers (9 threads: 3), the
+ * message is the first's, as in the serial pass. */
 TEST(reader_error_mid_pass_is_named)
 {
     char dir[] = "/tmp/sl_pipeXXXXXX", path[64];
@@ -464,13 +520,15 @@ TEST(reader_error_mid_pass_is_named)
     for (int k = 0; k < 12; k++) {
         for (int i = 0; i < N * N; i++)
             fr[i] = (float)((i * 7 + k * 13) % 29);
-        if (k == 9)
+        if (k == 9 || k == 10)
             fr[5] = NAN;
         cube_writer_append(w, fr);
     }
     cube_writer_close(w);
     cube_writer_free(w);
-    for (int k = 1; k <= 2; k++) {
+    static const int threads[] = {1, 2, 9};
+    for (int i = 0; i < 3; i++) {
+        int k = threads[i];
         pipeline_opts o;
         pipeline_opts_defaults(&o);
         o.method = PIPE_TSM_FOURIER, o.fftw_measure = 0, o.nthreads = k, o.prep = 0;
@@ -480,7 +538,8 @@ TEST(reader_error_mid_pass_is_named)
         int rc = pipeline_run(paths, 1, &o, &r, &e);
         if (rc == SL_OK)
             pipeline_result_clear(&r);
-        CHECK(rc != SL_OK && strstr(e.msg, "nan.fits"), "%d threads: rc %d, \"%s\"", k, rc, e.msg);
+        CHECK(rc != SL_OK && strstr(e.msg, "nan.fits") && strstr(e.msg, "in frame 9;"),
+              "%d threads: rc %d, \"%s\"", k, rc, e.msg);
     }
     unlink(path);
     rmdir(dir);
@@ -504,5 +563,6 @@ TC_MAIN(TC_CASE(every_method_measures_the_binary), TC_CASE(photon_counting_cube)
         TC_CASE(tsm_corrected_phases), TC_CASE(tsm_corrected_phases_need_photons),
         TC_CASE(camera_gain_gives_photon_statistics),
         TC_CASE(few_angles_iterative_inverse),
-        TC_CASE(images_equal_on_one_and_two_threads), TC_CASE(reader_error_mid_pass_is_named),
+        TC_CASE(images_equal_on_one_and_more_threads),
+        TC_CASE(camera_cube_equal_on_one_and_many_readers), TC_CASE(reader_error_mid_pass_is_named),
         TC_CASE(bad_inputs_are_named))

@@ -20,6 +20,16 @@
  * for the whole run and for each stage: a stage that does not gain is
  * serial, whatever its share.  On a shared machine the load average is
  * printed first: a busy machine makes every thread count look worse.
+ * Amdahl's p counts two different losses as serial: time when cores sat
+ * idle (one thread working, waits, I/O, a host taking the vCPU), and
+ * extra CPU the T threads spent for the same work (shared caches and
+ * memory bandwidth).  They are split with the CPU time: a run whose work
+ * is parallel but for s seconds on one core has cpu_T = s + T (t_T - s),
+ * so
+ *     s = (T t_T - cpu_T) / (T - 1),   overhead = cpu_T / cpu_1 - 1;
+ * 1 - s / t_1 is the fraction of the work that spread, the one that
+ * bounds T -> infinity, and the overhead is the machine's (2 cores
+ * sharing one L3 here; other on a machine with more cache per core).
  */
 #define _GNU_SOURCE /* sched_setaffinity, CPU_SET */
 #include "bench_scaling.h"
@@ -130,6 +140,11 @@ static void print_fraction(const char *method, const point *one, const point *pn
                    100 * one->stage_s[k] / one->total_s,
                    100 * amdahl(one->stage_s[k], pn->stage_s[k], n));
     printf("\n");
+    double serial_s = (n * pn->total_s - pn->cpu_s) / (n - 1);
+    printf("%s, on %d: %.3f s with cores idle (%.1f %% of the 1-thread run: %.1f %% of the "
+           "work spread), CPU %+.0f %% (the threads' contention)\n", method, n, serial_s,
+           100 * serial_s / one->total_s, 100 * (1 - serial_s / one->total_s),
+           100 * (pn->cpu_s / one->cpu_s - 1));
 }
 
 /* The thread counts: 1, 2, 4 ... up to the CPUs this process may use (at

@@ -197,7 +197,8 @@ TEST(existing_markdown_needs_overwrite)
  * least) whose CPU time fits its CPUs and whose stages account for its wall time (the stages partition
  * pipeline_run: their sum within 5 % + 5 ms of the total, never above it
  * by more than the printed rounding), speedup 1.00 at one thread, and
- * the parallel-fraction line; a bad method is named. */
+ * the parallel-fraction line, and the idle core time that follows from
+ * the widest row's wall and CPU time; a bad method is named. */
 TEST(scaling_stages_account_for_the_time)
 {
     fx f;
@@ -213,7 +214,8 @@ TEST(scaling_stages_account_for_the_time)
     CHECK(rc == 0, "exit %d: %s", rc, out);
     static const char *const methods[] = {"direct", "tsm", "tsm-fourier"};
     for (int m = 0; m < 3; m++) {
-        int rows = 0;
+        int rows = 0, top_th = 0;
+        double top_s = 0, top_cpu = 0;
         for (const char *l = out; (l = strstr(l, methods[m])) != NULL; l++) {
             if (l != out && l[-1] != '\n')
                 continue;
@@ -237,11 +239,22 @@ TEST(scaling_stages_account_for_the_time)
             CHECK(th != 1 || fabs(v[8] - 1) < 1e-9, "%s: speedup %.2f at one thread",
                   methods[m], v[8]);
             rows++;
+            if (th > top_th)
+                top_th = th, top_s = v[0], top_cpu = cpu;
         }
         char line[64];
         snprintf(line, sizeof line, "%s, 1 -> ", methods[m]);
         CHECK(rows >= 2 && strstr(out, line), "%s: %d rows, fraction line %d", methods[m], rows,
               strstr(out, line) != NULL);
+        /* the idle core time is (T t_T - cpu_T) / (T - 1) of the T row
+         * (printed to 1 ms and 10 ms) */
+        snprintf(line, sizeof line, "%s, on %d: ", methods[m], top_th);
+        const char *idle = strstr(out, line);
+        double idle_s = NAN;
+        CHECK(idle && sscanf(idle + strlen(line), "%lf s with cores idle", &idle_s) == 1 &&
+              fabs(idle_s - (top_th * top_s - top_cpu) / (top_th - 1)) <= 0.012,
+              "%s: idle line %s, %.3f s against %d x %.3f - %.2f", methods[m],
+              idle ? "found" : "missing", idle_s, top_th, top_s, top_cpu);
     }
     CHECK(bad == 2 && bad_named, "a bad method: exit %d, named %d", bad, bad_named);
 }

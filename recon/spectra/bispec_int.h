@@ -6,6 +6,7 @@
 
 #include <complex.h>
 #include <fftw3.h>
+#include <stdatomic.h>
 
 #include "base/tpool.h"
 #include "bispec.h"
@@ -13,9 +14,11 @@
 /* The kernel's vector: BISPEC_LANES frames of one leg (64 bytes, one
  * AVX-512 register, two AVX2 ones); a batch is kb / BISPEC_LANES of them. */
 #define BISPEC_LANES 16
-/* Frames transformed together (bispec_add): one per thread at a time,
- * and their slots (in, out) cost 12 w h bytes each. */
+/* Frame slots (in, out: 12 w h bytes each), in two groups of
+ * BISPEC_SLOTS / 2: one fills (bispec_add) while a job transforms the
+ * other (bispec_kernel.c). */
 #define BISPEC_SLOTS 8
+#define BISPEC_GROUP (BISPEC_SLOTS / 2)
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
 #define BISPEC_TILE 8
 /* and the u2 disk's rows in segments of BISPEC_SEG entries (bispec_kernel.c) */
@@ -72,6 +75,13 @@ struct bispec {
     fftwf_complex *out, *out2; /* their transforms, nhp apart */
     size_t npad, nhp;
     int nspread;             /* frames of the batch already in fb */
+    /* The staging (bispec_kernel.c): group cur fills, nstaged frames; the
+     * job transforms group fg's fn frames and spreads group sg's sn
+     * (lanes from slane), claimed from f_next and s_next; pend (pendn
+     * frames) is transformed and waits to be spread. */
+    int cur, nstaged, inflight, submitted;
+    int fg, fn, sg, sn, slane, pend, pendn;
+    atomic_int f_next, s_next;
     fftwf_plan plan, plan2;
     double *phi, *work;
     unsigned char *known;

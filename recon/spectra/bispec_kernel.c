@@ -102,38 +102,36 @@ static void window_slot(bispec *b, int k)
  * thread is free, a slot or SPREAD_CLAIM frequencies at a time: each is
  * computed whole by one thread, so the bits do not depend on who runs
  * it, and fixed shares left a thread idle whenever the read-ahead thread
- * (three threads on two cores) or the host slowed the other. */
+ * (three threads on two cores) or the host slowed the other.
+ * Why a pipeline of two groups: with one, the caller copied each frame
+ * in (and waited for the read-ahead) while the other threads sat idle
+ * until the slots were full, ~60 ms of one core in a 512^2 x 400 run on
+ * two threads.  Now one job transforms the group just filled and spreads
+ * the group it transformed before, while the caller fills the other
+ * group; each frequency still receives the frames in order, as a group
+ * is spread only after the job that spread the group before it. */
 enum { SPREAD_CLAIM = 256 };
-typedef struct stage_job {
-    bispec *b;
-    atomic_int next;
-} stage_job;
 
-/* tpool job: window and transform the staged frames' slots claimed
- * (fftwf_execute_dft_r2c on the handle's plans: every slot has the
- * planned arrays' alignment). */
-static void fft_job(void *ctx, int tid, int n)
+/* Slot k windowed and transformed (fftwf_execute_dft_r2c on the handle's
+ * plans: every slot has the planned arrays' alignment). */
+static void fft_slot(bispec *b, int k)
 {
-    stage_job *j = ctx;
-    bispec *b = j->b;
-    (void)tid, (void)n;
-    for (int k; (k = atomic_fetch_add(&j->next, 1)) < b->nb - b->nspread;) {
-        window_slot(b, k);
-        fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
-        if (b->plan2)
-            fftwf_execute_dft_r2c(b->plan2, b->in2 + (size_t)k * b->npad,
-                                  b->out2 + (size_t)k * b->nhp);
-    }
+    window_slot(b, k);
+    fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
+    if (b->plan2)
+        fftwf_execute_dft_r2c(b->plan2, b->in2 + (size_t)k * b->npad,
+                              b->out2 + (size_t)k * b->nhp);
 }
 
-/* Frequency j of the staged frames' spectra into its + and - legs'
- * lanes (nspread..nb-1), and into its sums, in frame order. */
-static void spread_freq(bispec *b, int j)
+/* Frequency j of slots k0..k0+n-1 into its + and - legs' lanes
+ * lane0.., and into its sums, in frame order. */
+static void spread_freq(bispec *b, int j, int k0, int n, int lane0)
 {
     size_t K = (size_t)b->kb, o = (size_t)((b->fq[j] + b->h) % b->h) * b->wc + b->fp[j];
     float *pj = b->fb + (size_t)j * 2 * K, *mj = pj + (size_t)b->nf * 2 * K;
-    for (int s = b->nspread; s < b->nb; s++) {
-        const fftwf_complex *f = b->out + (size_t)(s - b->nspread) * b->nhp;
+    for (int i = 0; i < n; i++) {
+        int s = lane0 + i;
+        const fftwf_complex *f = b->out + (size_t)(k0 + i) * b->nhp;
         float re = crealf(f[o]), im = cimagf(f[o]);
         pj[s] = re;
         pj[K + s] = im;
@@ -145,7 +143,7 @@ static void spread_freq(bispec *b, int j)
             continue;
         /* X = F_w conj(F_{w^2}); without a window that is |F|^2. */
         if (b->out2) {
-            const fftwf_complex *f2 = b->out2 + (size_t)(s - b->nspread) * b->nhp;
+            const fftwf_complex *f2 = b->out2 + (size_t)(k0 + i) * b->nhp;
             double r2 = crealf(f2[o]), i2 = cimagf(f2[o]);
             b->xsum[2 * j] += re * r2 + im * i2;
             b->xsum[2 * j + 1] += im * r2 - re * i2;
@@ -160,36 +158,70 @@ static void spread_freq(bispec *b, int j)
     }
 }
 
-/* tpool job: spread the frequencies claimed, taken in the spectra's
- * memory order (sorder): in rank order each frequency read the staged
- * spectra at scattered places, a cache miss per frame and frequency once
- * they outgrow L2 (8 MB of spectra at 512^2). */
-static void spread_job(void *ctx, int tid, int n)
+/* tpool job: the transforms of group fg claimed, then the spread of group
+ * sg, SPREAD_CLAIM frequencies at a time, taken in the spectra's memory
+ * order (sorder): in rank order each frequency read the staged spectra
+ * at scattered places, a cache miss per frame and frequency once they
+ * outgrow L2 (8 MB of spectra at 512^2).  The two touch different
+ * groups. */
+static void stage_job(void *ctx, int tid, int n)
 {
-    stage_job *j = ctx;
-    bispec *b = j->b;
+    bispec *b = ctx;
     (void)tid, (void)n;
-    for (int i0; (i0 = atomic_fetch_add(&j->next, SPREAD_CLAIM)) < b->nf;) {
+    for (int k; (k = atomic_fetch_add(&b->f_next, 1)) < b->fn;)
+        fft_slot(b, b->fg * BISPEC_GROUP + k);
+    for (int i0; b->sn && (i0 = atomic_fetch_add(&b->s_next, SPREAD_CLAIM)) < b->nf;) {
         int i1 = i0 + SPREAD_CLAIM < b->nf ? i0 + SPREAD_CLAIM : b->nf;
         for (int i = i0; i < i1; i++)
-            spread_freq(b, b->sorder[i]);
+            spread_freq(b, b->sorder[i], b->sg * BISPEC_GROUP, b->sn, b->slane);
     }
 }
 
-/* Transform the staged frames and spread them over the legs, both on the
- * handle's threads (per frame, then per frequency). */
-static void stage(bispec *b)
+/* Join the job (what is left of it on this thread, then its end): the
+ * group it spread goes to the window sums, in frame order, and the group
+ * it transformed waits to be spread. */
+static void stage_finish(bispec *b)
 {
-    if (b->nb == b->nspread)
+    if (!b->inflight)
         return;
-    stage_job ffts = {b, 0}, spread = {b, 0};
-    tpool_run(b->pool, fft_job, &ffts);
-    for (int k = 0; k < b->nb - b->nspread; k++) { /* in frame order */
+    stage_job(b, 0, 1);
+    if (b->submitted)
+        tpool_wait(b->pool);
+    for (int k = b->sg * BISPEC_GROUP; k < b->sg * BISPEC_GROUP + b->sn; k++) {
         b->w2sum += b->sw2[k];
         b->w3sum += b->sw3[k];
     }
-    tpool_run(b->pool, spread_job, &spread);
-    b->nspread = b->nb;
+    b->nspread += b->sn;
+    b->pend = b->fg, b->pendn = b->fn;
+    b->inflight = b->submitted = 0;
+}
+
+/* The next job: the filling group's frames and the pending group's
+ * spread; async, the caller fills the other group meanwhile. */
+static void stage_submit(bispec *b, int async)
+{
+    stage_finish(b);
+    b->fg = b->cur, b->fn = b->nstaged;
+    b->sg = b->pendn ? b->pend : 0, b->sn = b->pendn, b->slane = b->nspread;
+    b->pendn = 0;
+    atomic_store(&b->f_next, 0);
+    atomic_store(&b->s_next, 0);
+    b->cur ^= 1;
+    b->nstaged = 0;
+    b->inflight = 1;
+    b->submitted = async && tpool_size(b->pool) > 1;
+    if (b->submitted)
+        tpool_submit(b->pool, stage_job, b);
+}
+
+/* Every staged frame transformed and spread into the batch. */
+static void stage(bispec *b)
+{
+    while (b->inflight || b->nstaged || b->pendn) {
+        if (b->nstaged || b->pendn)
+            stage_submit(b, 0);
+        stage_finish(b);
+    }
 }
 
 /* Stage what is left, then run the kernel over the batch (the lanes of a
@@ -227,16 +259,17 @@ int bispec_add(bispec *b, const float *frame)
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
-    size_t npx = (size_t)b->w * b->h;
-    size_t bad = finite_copy(b->in + (size_t)(b->nb - b->nspread) * b->npad, frame, npx);
+    size_t npx = (size_t)b->w * b->h, k = (size_t)b->cur * BISPEC_GROUP + b->nstaged;
+    size_t bad = finite_copy(b->in + k * b->npad, frame, npx);
     if (bad < npx) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&b->err, SL_EDATA, "bispec_add: frame %d pixel %zu is not finite",
                          b->n, bad);
     b->n++;
     b->phased = 0;
-    if (++b->nb == b->kb)
+    b->nb++;
+    if (++b->nstaged == BISPEC_GROUP)
+        stage_submit(b, 1);
+    if (b->nb == b->kb)
         bispec_flush(b);
-    else if (b->nb - b->nspread == BISPEC_SLOTS)
-        stage(b);
     return SL_OK;
 }

@@ -104,23 +104,25 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
     p->h = h;
     p->wc = w / 2 + 1;
     p->o = *o;
-    /* One slot per frame in flight: with one thread a frame is summed
-     * as it comes, so nothing is held. */
-    p->ns = o->nthreads > 1 ? POWSPEC_SLOTS : 1;
+    /* A slot per frame in flight: with one thread a frame is summed as
+     * it comes (one a group); with more, as many as threads, 4..8. */
+    int nt = o->nthreads;
+    p->ns = nt > 1 ? (nt < 4 ? 4 : nt > POWSPEC_SLOTS ? POWSPEC_SLOTS : nt) : 1;
     p->npad = (n + 15) / 16 * 16;
     p->nhp = (nh + 7) / 8 * 8;
-    p->in = fftwf_alloc_real(p->ns * p->npad);
-    p->out = fftwf_alloc_complex(p->ns * p->nhp);
-    p->sflux = malloc((size_t)p->ns * sizeof *p->sflux);
-    p->sw2 = malloc((size_t)p->ns * sizeof *p->sw2);
+    size_t nslot = 2 * (size_t)p->ns;
+    p->in = fftwf_alloc_real(nslot * p->npad);
+    p->out = fftwf_alloc_complex(nslot * p->nhp);
+    p->sflux = malloc(nslot * sizeof *p->sflux);
+    p->sw2 = malloc(nslot * sizeof *p->sw2);
     p->ps = calloc(nh, sizeof *p->ps);
     p->ft = calloc(nh, sizeof *p->ft);
     if (!p->in || !p->out || !p->sflux || !p->sw2 || !p->ps || !p->ft)
         goto fail_alloc;
     if (o->aligned) {
         p->aft = calloc(nh, sizeof *p->aft);
-        p->ex = malloc((size_t)p->ns * p->wc * sizeof *p->ex);
-        p->ey = malloc((size_t)p->ns * h * sizeof *p->ey);
+        p->ex = malloc(nslot * p->wc * sizeof *p->ex);
+        p->ey = malloc(nslot * h * sizeof *p->ey);
         if (!p->aft || !p->ex || !p->ey)
             goto fail_alloc;
     }
@@ -178,7 +180,7 @@ const char *powspec_errmsg(const powspec *p)
     return p ? p->err.msg : "no powspec handle";
 }
 
-int powspec_nframes(const powspec *p) { return p ? p->n + p->nstaged : 0; }
+int powspec_nframes(const powspec *p) { return p ? p->nadded : 0; }
 
 double powspec_mean_flux(powspec *p)
 {
@@ -467,6 +469,6 @@ void powspec_partial_load(powspec *p, const double *buf)
         complex_in(buf + 3 * nh, nh, p->aft);
     p->flux = buf[e];
     p->pbias = buf[e + 1];
-    p->n = (int)buf[e + 2];
+    p->n = p->nadded = (int)buf[e + 2];
     p->w2flux = buf[e + 3];
 }

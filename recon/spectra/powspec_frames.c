@@ -1,29 +1,32 @@
 /* powspec_frames.c - frames into a powspec (powspec.h): each frame is
- * copied into a slot; when the slots are full (or a result is asked for)
- * the handle's threads window and transform them, a slot at a time, and
- * then add them to the sums, a band of SUM_ROWS rows of the half plane at
- * a time, adding the slots in frame order; slots and bands are claimed by
- * whichever thread is free (fixed shares left one idle whenever the
- * read-ahead thread or the host slowed the other).  So every sum takes the
- * same operations in the same order as one frame at a time on one thread:
- * the same bits on any thread count.  The transforms were the power
- * spectrum pass's serial part (12 % of a one-thread direct run at
- * 512^2 x 400).
+ * copied into a slot of the group filling; when the group is full (or a
+ * result is asked for) a job on the handle's threads windows and
+ * transforms its slots, a slot at a time, while the same job adds the
+ * group transformed before it to the sums, a band of SUM_ROWS rows of the
+ * half plane at a time, its slots in frame order; slots and bands are
+ * claimed by whichever thread is free (fixed shares left one idle
+ * whenever the read-ahead thread or the host slowed the other).  So every
+ * sum takes the same operations in the same order as one frame at a time
+ * on one thread: the same bits on any thread count.  The transforms were
+ * the power spectrum pass's serial part (12 % of a one-thread direct run
+ * at 512^2 x 400).
+ *
+ * Why two groups and a job that spans them: with one group, the caller
+ * copied each frame in (and waited for the read-ahead) while the other
+ * threads sat idle until the group was full, ~50 ms of one core in a
+ * 512^2 x 400 direct run on two threads.  Now the caller fills one group
+ * while the job runs on the other, and joins the job when the group is
+ * full (the software pipeline of tsm_accum.c): a group's sums start only
+ * after the job before (which transformed it) has ended, and the groups
+ * are summed in order.
  */
 #include "base/finite.h"
 #include "powspec_int.h"
-
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-
 enum { SUM_ROWS = 8 };
-typedef struct frames_job {
-    powspec *p;
-    atomic_int next;
-} frames_job;
-
 /* Slot s's alignment ramps: the frame's spectrum moved to its
  * first-harmonic centroid (the phase of F at (1, 0) and (0, 1) is the
  * circular centroid's) leaves per-frame tip-tilt out of the long
@@ -56,28 +59,22 @@ static void window_slot(powspec *p, int s)
     p->sw2[s] = w2flux;
 }
 
-/* tpool job: window and transform the slots claimed (new-array execute
- * on the plan's alignment) and make their ramps. */
-static void fft_job(void *ctx, int tid, int n)
+/* Slot s windowed and transformed (new-array execute on the plan's
+ * alignment), with its ramps. */
+static void fft_slot(powspec *p, int s)
 {
-    frames_job *fj = ctx;
-    powspec *p = fj->p;
-    (void)tid, (void)n;
-    for (int s; (s = atomic_fetch_add(&fj->next, 1)) < p->nstaged;) {
-        window_slot(p, s);
-        fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad,
-                              p->out + (size_t)s * p->nhp);
-        if (p->aft)
-            ramps(p, s);
-    }
+    window_slot(p, s);
+    fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad, p->out + (size_t)s * p->nhp);
+    if (p->aft)
+        ramps(p, s);
 }
 
-/* Row j of the half plane: every staged slot, in order, added to |F|^2,
- * F and (opts.aligned) F moved by the slot's ramps; about 2 w flops a
- * frame for the alignment. */
-static void sum_row(powspec *p, int j)
+/* Row j of the half plane: slots s0..s0+n-1, in order, added to |F|^2, F
+ * and (opts.aligned) F moved by the slot's ramps; about 2 w flops a frame
+ * for the alignment. */
+static void sum_row(powspec *p, int s0, int n, int j)
 {
-    for (int s = 0; s < p->nstaged; s++) {
+    for (int s = s0; s < s0 + n; s++) {
         const fftwf_complex *out = p->out + (size_t)s * p->nhp;
         const double complex *ex = p->ex ? p->ex + (size_t)s * p->wc : NULL;
         const double complex *ey = p->ey ? p->ey + (size_t)s * p->h : NULL;
@@ -92,31 +89,65 @@ static void sum_row(powspec *p, int j)
     }
 }
 
-/* tpool job: the bands of rows claimed, SUM_ROWS at a time. */
-static void sum_job(void *ctx, int tid, int n)
+/* tpool job: the transforms claimed, then the bands of rows claimed,
+ * SUM_ROWS at a time.  The two touch different groups. */
+static void group_job(void *ctx, int tid, int n)
 {
-    frames_job *fj = ctx;
-    powspec *p = fj->p;
+    powspec *p = ctx;
     (void)tid, (void)n;
-    for (int j0; (j0 = atomic_fetch_add(&fj->next, SUM_ROWS)) < p->h;)
+    for (int s; (s = atomic_fetch_add(&p->f_next, 1)) < p->fn;)
+        fft_slot(p, p->fg * p->ns + s);
+    for (int j0; p->sn && (j0 = atomic_fetch_add(&p->s_next, SUM_ROWS)) < p->h;)
         for (int j = j0; j < j0 + SUM_ROWS && j < p->h; j++)
-            sum_row(p, j);
+            sum_row(p, p->sg * p->ns, p->sn, j);
 }
 
-void powspec_flush(powspec *p)
+/* Join the job (what is left of it on this thread, then its end); the
+ * group it summed goes to the scalar sums, in frame order, and the group
+ * it transformed waits to be summed. */
+static void finish(powspec *p)
 {
-    if (!p->nstaged)
+    if (!p->inflight)
         return;
-    frames_job ffts = {p, 0}, sums = {p, 0};
-    tpool_run(p->pool, fft_job, &ffts);
-    tpool_run(p->pool, sum_job, &sums);
-    for (int s = 0; s < p->nstaged; s++) {
+    group_job(p, 0, 1);
+    if (p->submitted)
+        tpool_wait(p->pool);
+    for (int s = p->sg * p->ns; s < p->sg * p->ns + p->sn; s++) {
         p->flux += p->sflux[s];
         p->w2flux += p->sw2[s];
         p->pbias += p->o.adu_per_photon * p->sw2[s] + p->rbias;
         p->n++;
     }
+    p->pend = p->fg, p->pendn = p->fn;
+    p->inflight = p->submitted = 0;
+}
+
+/* The next job: the filling group's staged frames and the pending
+ * group's sums; the other group fills meanwhile (async: on the workers,
+ * joined by the next finish). */
+static void submit(powspec *p, int async)
+{
+    finish(p);
+    p->fg = p->cur, p->fn = p->nstaged;
+    p->sg = p->pendn ? p->pend : 0, p->sn = p->pendn;
+    p->pendn = 0;
+    atomic_store(&p->f_next, 0);
+    atomic_store(&p->s_next, 0);
+    p->cur ^= 1;
     p->nstaged = 0;
+    p->inflight = 1;
+    p->submitted = async && tpool_size(p->pool) > 1;
+    if (p->submitted)
+        tpool_submit(p->pool, group_job, p);
+}
+
+void powspec_flush(powspec *p)
+{
+    while (p->inflight || p->nstaged || p->pendn) {
+        if (p->nstaged || p->pendn)
+            submit(p, 0);
+        finish(p);
+    }
 }
 
 /* The frame into the next slot after one branch-free scan for NaN and
@@ -128,11 +159,13 @@ int powspec_add(powspec *p, const float *frame)
         return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
                          "powspec_add: NULL argument");
     size_t n = (size_t)p->w * p->h;
-    size_t bad = finite_copy(p->in + (size_t)p->nstaged * p->npad, frame, n);
+    size_t slot = (size_t)p->cur * p->ns + p->nstaged;
+    size_t bad = finite_copy(p->in + slot * p->npad, frame, n);
     if (bad < n) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&p->err, SL_EDATA, "powspec_add: frame %d pixel %zu is not finite",
-                         p->n + p->nstaged, bad);
+                         p->nadded, bad);
+    p->nadded++;
     if (++p->nstaged == p->ns)
-        powspec_flush(p);
+        submit(p, 1);
     return SL_OK;
 }

@@ -6,24 +6,34 @@
 
 #include <complex.h>
 #include <fftw3.h>
+#include <stdatomic.h>
 
 #include "base/tpool.h"
 #include "powspec.h"
 
-/* Frames staged before their transforms run together on the handle's
- * threads (with one thread: 1, each frame at once).  Each slot costs
- * 12 w h bytes (16 w h with opts.aligned's ramps, which are small). */
+/* Frames staged per group before their transforms run together on the
+ * handle's threads: its thread count within 4..POWSPEC_SLOTS (with one
+ * thread: 1).  Two groups: one fills while the other's job runs
+ * (powspec_frames.c).  Each slot costs 12 w h bytes (16 w h with
+ * opts.aligned's ramps, which are small). */
 #define POWSPEC_SLOTS 8
 
 struct powspec {
     int w, h, wc;         /* wc = w/2 + 1 columns of the half plane */
     powspec_opts o;
     float *win;           /* w*h window or NULL */
-    float *in;            /* ns slots of npad floats: windowed frames */
-    fftwf_complex *out;   /* ns slots of nhp: their spectra */
+    float *in;            /* 2 ns slots of npad floats: windowed frames */
+    fftwf_complex *out;   /* 2 ns slots of nhp: their spectra */
     size_t npad, nhp;     /* slot strides, 64-byte multiples (the plan's
                              alignment holds in every slot) */
-    int ns, nstaged;      /* slots; frames staged, not yet summed */
+    int ns;               /* slots per group: group g is slots g ns.. */
+    int cur, nstaged;     /* the group filling, and its frames */
+    int nadded;           /* frames added: summed, in a job or staged */
+    /* The job (powspec_frames.c): group fg's fn transforms and group
+     * sg's sums of sn frames, claimed from f_next and s_next; pend, pendn:
+     * the group transformed and not yet summed (pendn 0: none). */
+    int inflight, submitted, fg, fn, sg, sn, pend, pendn;
+    atomic_int f_next, s_next;
     double *sflux, *sw2;  /* per slot: the frame's flux, sum w^2 frame */
     double complex *ex, *ey; /* per slot: wc and h alignment ramps */
     tpool *pool;          /* opts.nthreads */

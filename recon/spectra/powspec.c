@@ -201,23 +201,33 @@ static size_t half_index(const powspec *p, int i, int j, int *mirror)
     return (size_t)j * p->wc + i;
 }
 
-/* rho (hypot of the frequency over Nyquist on each axis) of index (i, j)
- * beyond rho0, with hypot only within 1e-9 of rho0^2: the sum of squares
- * is within a few ulps of rho^2, so far from the circle it cannot decide
- * otherwise (the same answers; hypot at every frequency, in the floor's
- * passes, was ~5 ms of serial planning at 512^2). */
-static int rho_beyond(int i, int j, int w, int h, double rho0)
+/* rho (hypot of the frequency over Nyquist on each axis) beyond rho0,
+ * with hypot (and its divisions) only within 1e-9 of rho0^2: the sum of
+ * squares made with reciprocals is within a few ulps of rho^2, so away
+ * from the circle it decides as hypot does (the same answers; hypot at
+ * every frequency of the floor's passes was ~5 ms of serial planning at
+ * 512^2, and the divisions ~4 ms more). */
+typedef struct rho_test {
+    int w, h;
+    double rho0, sx, sy, lo, hi;
+} rho_test;
+
+static rho_test rho_test_make(int w, int h, double rho0)
 {
-    int pf = i <= (w - 1) / 2 ? i : i - w;
-    int qf = j <= (h - 1) / 2 ? j : j - h;
-    double x = pf / (0.5 * w), y = qf / (0.5 * h), r2 = x * x + y * y, c2 = rho0 * rho0;
-    if (rho0 < 0)
+    double c2 = rho0 * rho0;
+    return (rho_test){w, h, rho0, 2.0 / w, 2.0 / h, c2 * (1 - 1e-9), c2 * (1 + 1e-9)};
+}
+
+static int rho_beyond(const rho_test *t, int i, int j)
+{
+    int pf = i <= (t->w - 1) / 2 ? i : i - t->w;
+    int qf = j <= (t->h - 1) / 2 ? j : j - t->h;
+    double x = pf * t->sx, y = qf * t->sy, r2 = x * x + y * y;
+    if (t->rho0 < 0 || r2 > t->hi)
         return 1;
-    if (r2 < c2 * (1 - 1e-9))
+    if (r2 < t->lo)
         return 0;
-    if (r2 > c2 * (1 + 1e-9))
-        return 1;
-    return hypot(x, y) > rho0;
+    return hypot(pf / (0.5 * t->w), qf / (0.5 * t->h)) > t->rho0;
 }
 
 /* Mean (and optionally std) of the full-plane spectrum over rho > rho0;
@@ -227,9 +237,10 @@ static size_t floor_stats(const double *ps, int w, int h, double rho0,
 {
     double s = 0, s2 = 0;
     size_t m = 0;
+    rho_test t = rho_test_make(w, h, rho0);
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++)
-            if (rho_beyond(i, j, w, h, rho0)) {
+            if (rho_beyond(&t, i, j)) {
                 double v = ps[(size_t)j * w + i];
                 s += v;
                 s2 += v * v;
@@ -252,10 +263,12 @@ static double floor_level(const powspec *p, int *speckle, double *outer)
      * the outer part, the least of it, stands for the floor. */
     double s[2] = {0, 0};
     size_t m[2] = {0, 0};
+    rho_test t1 = rho_test_make(p->w, p->h, p->o.floor_rho);
+    rho_test t2 = rho_test_make(p->w, p->h, 1.2 * p->o.floor_rho);
     for (int j = 0; j < p->h; j++)
         for (int i = 0; i < p->w; i++) {
-            if (rho_beyond(i, j, p->w, p->h, p->o.floor_rho)) {
-                int mir, k = rho_beyond(i, j, p->w, p->h, 1.2 * p->o.floor_rho);
+            if (rho_beyond(&t1, i, j)) {
+                int mir, k = rho_beyond(&t2, i, j);
                 s[k] += p->ps[half_index(p, i, j, &mir)];
                 m[k]++;
             }

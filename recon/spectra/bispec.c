@@ -6,11 +6,10 @@
 #include <complex.h>
 #include <fftw3.h>
 
+#include "base/bigmem.h"
 #include "bispec_int.h"
 
 #include <math.h>
-#include <stdint.h>
-#include <sys/mman.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -55,26 +54,21 @@ void *bispec_alloc_unzeroed(bispec *b, size_t bytes)
 }
 
 /* A big zeroed buffer (the accumulators, the batch buffer): fresh
- * anonymous pages, 2 MB aligned, with transparent huge pages asked for.
- * The kernel zeroes them when first touched, which the kernel threads
- * do, each on its own range, instead of a serial memset here; and huge
- * pages spare the TLB the batch buffer's scattered u1 reads (one 2 MB
- * entry instead of 512).  Counted in b->mem; unmapped by bispec_free. */
-#define BIG_ALIGN ((size_t)2 << 20)
+ * anonymous pages, 2 MB aligned, with transparent huge pages asked for
+ * (bigmem.h).  The kernel zeroes them when first touched, which the
+ * kernel threads do, each on its own range, instead of a serial memset
+ * here; and huge pages spare the TLB the batch buffer's scattered u1
+ * reads (one 2 MB entry instead of 512).  Counted in b->mem; handed back
+ * by the pool's threads and unmapped by bispec_free. */
 static void *big_alloc(bispec *b, size_t bytes)
 {
     if (b->nmap == BISPEC_NMAP)
         return NULL;
-    size_t len = bytes + BIG_ALIGN;
-    void *m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (m == MAP_FAILED)
+    void *p = bigmem_alloc(bytes, 1);
+    if (!p)
         return NULL;
-    b->map[b->nmap] = m;
-    b->maplen[b->nmap++] = len;
-    char *p = (char *)(((uintptr_t)m + BIG_ALIGN - 1) & ~(uintptr_t)(BIG_ALIGN - 1));
-#ifdef MADV_HUGEPAGE
-    madvise(p, (bytes + BIG_ALIGN - 1) & ~(BIG_ALIGN - 1), MADV_HUGEPAGE); /* a hint */
-#endif
+    b->map[b->nmap] = p;
+    b->maplen[b->nmap++] = bytes;
     b->mem += bytes;
     return p;
 }
@@ -246,25 +240,14 @@ fail:
     return NULL;
 }
 
-/* tpool job: thread tid hands its share of each big mapping back to the
- * kernel, cut at 2 MB boundaries (whole huge pages).  Why: one thread
- * unmapping the accumulators (~450 MB at 512^2) spent ~20 ms alone at
- * the end of a run freeing pages; MADV_DONTNEED frees them under the
- * mapping's read lock, so the threads free in parallel, and the munmap
- * after has nothing left to free. */
+/* tpool job: thread tid hands its share of each big buffer back
+ * (bigmem.h: one thread freeing ~450 MB at 512^2 spent ~20 ms alone at
+ * the end of a run). */
 static void release_job(void *ctx, int tid, int n)
 {
     bispec *b = ctx;
-    for (int i = 0; i < b->nmap; i++) {
-        uintptr_t m = (uintptr_t)b->map[i], len = b->maplen[i], cut[2];
-        for (int e = 0; e < 2; e++) {
-            uintptr_t c = m + len * (uintptr_t)(tid + e) / (uintptr_t)n;
-            c = (c + BIG_ALIGN - 1) & ~(uintptr_t)(BIG_ALIGN - 1);
-            cut[e] = tid + e == 0 ? m : tid + e == n || c > m + len ? m + len : c;
-        }
-        if (cut[1] > cut[0])
-            madvise((void *)cut[0], cut[1] - cut[0], MADV_DONTNEED);
-    }
+    for (int i = 0; i < b->nmap; i++)
+        bigmem_release_share(b->map[i], b->maplen[i], tid, n);
 }
 
 void bispec_free(bispec *b)
@@ -281,7 +264,7 @@ void bispec_free(bispec *b)
         fftw_destroy_plan(b->iplan);
     tpool_free(b->pool);
     for (int i = 0; i < b->nmap; i++)
-        munmap(b->map[i], b->maplen[i]);
+        bigmem_free(b->map[i], b->maplen[i]);
     void *bufs[] = {b->fp,   b->fq,    b->ubase, b->seed,  b->lut,  b->doff,
                     b->dleg, b->tstart, b->tk,   b->kunit, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
                     b->known, b->work, b->win,   b->in,    b->out,  b->in2,

@@ -56,8 +56,8 @@ struct bispec {
                               * counts, cut at tile starts */
     double *accd, *acc2d;    /* 2 per triple; 1 per triple */
 #define BISPEC_NMAP 3
-    void *map[BISPEC_NMAP];  /* mappings of acc, acc2 and fb (big_alloc) */
-    size_t maplen[BISPEC_NMAP];
+    void *map[BISPEC_NMAP];  /* acc, acc2 and fb (big_alloc: bigmem.h) */
+    size_t maplen[BISPEC_NMAP]; /* their bytes */
     int nmap;
     float *accf, *acc2f;
     float *fb;               /* 2F legs x (kb re + kb im) */

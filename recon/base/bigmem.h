@@ -1,0 +1,25 @@
+/* bigmem.h - big buffers whose pages many threads hand back at the end.
+ *
+ * Why: freeing a few hundred MB of touched pages is ~20 ms of kernel
+ * work, and one thread doing it at the end of a run (munmap) idled every
+ * other core meanwhile.  MADV_DONTNEED frees a range under the mapping's
+ * read lock, so the pool's threads can each free a share, and the unmap
+ * after finds nothing left to free.
+ *
+ * bigmem_alloc: zero-filled anonymous pages (never touched here: each is
+ * faulted by whoever writes it first), 2 MB aligned; with huge > 0 also
+ * asks for transparent huge pages (a hint).  NULL when out of memory.
+ * bigmem_release_share: thread tid of n frees its share of the buffer's
+ * pages, cut at 2 MB boundaries; the buffer then reads as zeros.
+ * bigmem_free: unmaps it (NULL: nothing).  Sizes are the caller's bytes.
+ */
+#ifndef SL_BIGMEM_H
+#define SL_BIGMEM_H
+
+#include <stddef.h>
+
+void *bigmem_alloc(size_t bytes, int huge);
+void bigmem_release_share(void *p, size_t bytes, int tid, int n);
+void bigmem_free(void *p, size_t bytes);
+
+#endif

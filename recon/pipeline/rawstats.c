@@ -216,13 +216,11 @@ typedef struct add_job {
     atomic_int next;
 } add_job;
 
-/* The sums' pixels i0..i1-1 written (zeroed) before the first frame is
- * added to them.  Why: calloc leaves big buffers to the kernel, and the
- * add's first read of a page maps the shared zero page, so its first
- * write then took a copy-on-write fault and flushed the mapping from
- * every CPU running the process, an interprocessor interrupt per page
- * (on this VM a trap to the host, ~11 us): 2 ms of a 200^2 run's CPU,
- * ~15 ms at 512^2, in the learning that precedes everything.  Written
+/* The sums' pixels i0..i1-1 zeroed before the first frame is added.
+ * Why: calloc leaves big buffers to the kernel, the add's first read
+ * mapped the shared zero page, and the write after took a copy-on-write
+ * fault and a TLB flush on every CPU of the process (an interrupt per
+ * page, a trap to the host here): ~15 ms of CPU at 512^2.  Written
  * first, each page faults once, on the thread that owns its band. */
 static void first_touch(rawstats *r, size_t i0, size_t i1)
 {

@@ -64,6 +64,36 @@ int powspec_window(int kind, double alpha, int w, int h, float *win)
     return SL_OK;
 }
 
+/* The slots, their per-slot values and the sums (p->w, h, wc, o set);
+ * 0 when out of memory (powspec_free frees what was made).  A slot per
+ * frame in flight: with one thread a frame is summed as it comes (one a
+ * group); with more, as many as threads, 4..POWSPEC_SLOTS a group. */
+static int alloc_sums(powspec *p)
+{
+    int nt = p->o.nthreads;
+    size_t n = (size_t)p->w * p->h, nh = (size_t)p->h * p->wc;
+    p->ns = nt > 1 ? (nt < 4 ? 4 : nt > POWSPEC_SLOTS ? POWSPEC_SLOTS : nt) : 1;
+    p->npad = (n + 15) / 16 * 16;
+    p->nhp = (nh + 7) / 8 * 8;
+    size_t nslot = 2 * (size_t)p->ns;
+    p->in = fftwf_alloc_real(nslot * p->npad);
+    p->out = fftwf_alloc_complex(nslot * p->nhp);
+    p->sflux = malloc(nslot * sizeof *p->sflux);
+    p->sw2 = malloc(nslot * sizeof *p->sw2);
+    p->ps = calloc(nh, sizeof *p->ps);
+    p->ft = calloc(nh, sizeof *p->ft);
+    if (!p->in || !p->out || !p->sflux || !p->sw2 || !p->ps || !p->ft)
+        return 0;
+    if (p->o.aligned) {
+        p->aft = calloc(nh, sizeof *p->aft);
+        p->ex = malloc(nslot * p->wc * sizeof *p->ex);
+        p->ey = malloc(nslot * p->h * sizeof *p->ey);
+        if (!p->aft || !p->ex || !p->ey)
+            return 0;
+    }
+    return 1;
+}
+
 powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
 {
     powspec_opts def;
@@ -99,33 +129,13 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
     powspec *p = calloc(1, sizeof *p);
     if (!p)
         goto fail_nomem;
-    size_t n = (size_t)w * h, nh = (size_t)h * (w / 2 + 1);
+    size_t n = (size_t)w * h;
     p->w = w;
     p->h = h;
     p->wc = w / 2 + 1;
     p->o = *o;
-    /* A slot per frame in flight: with one thread a frame is summed as
-     * it comes (one a group); with more, as many as threads, 4..8. */
-    int nt = o->nthreads;
-    p->ns = nt > 1 ? (nt < 4 ? 4 : nt > POWSPEC_SLOTS ? POWSPEC_SLOTS : nt) : 1;
-    p->npad = (n + 15) / 16 * 16;
-    p->nhp = (nh + 7) / 8 * 8;
-    size_t nslot = 2 * (size_t)p->ns;
-    p->in = fftwf_alloc_real(nslot * p->npad);
-    p->out = fftwf_alloc_complex(nslot * p->nhp);
-    p->sflux = malloc(nslot * sizeof *p->sflux);
-    p->sw2 = malloc(nslot * sizeof *p->sw2);
-    p->ps = calloc(nh, sizeof *p->ps);
-    p->ft = calloc(nh, sizeof *p->ft);
-    if (!p->in || !p->out || !p->sflux || !p->sw2 || !p->ps || !p->ft)
+    if (!alloc_sums(p))
         goto fail_alloc;
-    if (o->aligned) {
-        p->aft = calloc(nh, sizeof *p->aft);
-        p->ex = malloc(nslot * p->wc * sizeof *p->ex);
-        p->ey = malloc(nslot * h * sizeof *p->ey);
-        if (!p->aft || !p->ex || !p->ey)
-            goto fail_alloc;
-    }
     if (!(p->pool = tpool_new(o->nthreads > 1 ? o->nthreads : 1, err)))
         goto fail_pool;
     if (o->window != POWSPEC_WIN_NONE) {

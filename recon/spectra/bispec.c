@@ -154,7 +154,7 @@ static int alloc_buffers(bispec *b)
             !(*bufs[i].slot = bufs[i].raw ? bispec_alloc_unzeroed(b, bufs[i].bytes)
                                           : bispec_alloc(b, bufs[i].bytes)))
             return SL_ENOMEM;
-    return SL_OK;
+    return (b->pipe = bispec_pipe_new(b)) ? SL_OK : SL_ENOMEM;
 }
 
 /* The window, the read noise's sums over it and the FFT plans. */
@@ -254,6 +254,7 @@ void bispec_free(bispec *b)
 {
     if (!b)
         return;
+    slotpipe_free(b->pipe); /* a job in flight uses the slots and fb */
     if (b->pool && tpool_size(b->pool) > 1)
         tpool_run(b->pool, release_job, b);
     if (b->plan)

@@ -6,8 +6,8 @@
 
 #include <complex.h>
 #include <fftw3.h>
-#include <stdatomic.h>
 
+#include "base/slotpipe.h"
 #include "base/tpool.h"
 #include "bispec.h"
 
@@ -15,8 +15,8 @@
  * AVX-512 register, two AVX2 ones); a batch is kb / BISPEC_LANES of them. */
 #define BISPEC_LANES 16
 /* Frame slots (in, out: 12 w h bytes each), in two groups of
- * BISPEC_SLOTS / 2: one fills (bispec_add) while a job transforms the
- * other (bispec_kernel.c). */
+ * BISPEC_GROUP: one fills (bispec_add) while a job transforms the other
+ * (slotpipe.h). */
 #define BISPEC_SLOTS 8
 #define BISPEC_GROUP (BISPEC_SLOTS / 2)
 /* Targets are visited in tiles of BISPEC_TILE x BISPEC_TILE frequencies. */
@@ -75,13 +75,7 @@ struct bispec {
     fftwf_complex *out, *out2; /* their transforms, nhp apart */
     size_t npad, nhp;
     int nspread;             /* frames of the batch already in fb */
-    /* The staging (bispec_kernel.c): group cur fills, nstaged frames; the
-     * job transforms group fg's fn frames and spreads group sg's sn
-     * (lanes from slane), claimed from f_next and s_next; pend (pendn
-     * frames) is transformed and waits to be spread. */
-    int cur, nstaged, inflight, submitted;
-    int fg, fn, sg, sn, slane, pend, pendn;
-    atomic_int f_next, s_next;
+    slotpipe *pipe;          /* the slots' pipeline (bispec_kernel.c) */
     fftwf_plan plan, plan2;
     double *phi, *work;
     unsigned char *known;
@@ -112,6 +106,9 @@ int bispec_build_graph(bispec *b, sl_err *err);
 /* Run the triple kernel over the batch of buffered frames
  * (bispec_kernel.c). */
 void bispec_flush(bispec *b);
+/* The slots' pipeline for b (its pool, nf set); NULL when out of memory
+ * (bispec_kernel.c). */
+slotpipe *bispec_pipe_new(bispec *b);
 
 /* One target's run (bispec_lanes.c): triples t.. of target j while
  * t < tend and the disk entry is below kend, summed over the batch's nch

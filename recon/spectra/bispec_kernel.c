@@ -98,24 +98,21 @@ static void window_slot(bispec *b, int k)
     b->sw3[k] = w3;
 }
 
-/* The staged frames' transforms and spread are claimed by whichever
- * thread is free, a slot or SPREAD_CLAIM frequencies at a time: each is
- * computed whole by one thread, so the bits do not depend on who runs
- * it, and fixed shares left a thread idle whenever the read-ahead thread
- * (three threads on two cores) or the host slowed the other.
- * Why a pipeline of two groups: with one, the caller copied each frame
- * in (and waited for the read-ahead) while the other threads sat idle
- * until the slots were full, ~60 ms of one core in a 512^2 x 400 run on
- * two threads.  Now one job transforms the group just filled and spreads
- * the group it transformed before, while the caller fills the other
- * group; each frequency still receives the frames in order, as a group
- * is spread only after the job that spread the group before it. */
+/* The staged frames' transforms and spread run in a pipeline of two
+ * groups of slots (slotpipe.h), claimed by whichever thread is free, a
+ * slot or SPREAD_CLAIM frequencies at a time: each is computed whole by
+ * one thread, so the bits do not depend on who runs it, and fixed shares
+ * left a thread idle whenever the read-ahead thread (three threads on
+ * two cores) or the host slowed the other.  A group is spread after the
+ * groups before it, at lanes nspread.., so each frequency receives the
+ * frames in order. */
 enum { SPREAD_CLAIM = 256 };
 
-/* Slot k windowed and transformed (fftwf_execute_dft_r2c on the handle's
- * plans: every slot has the planned arrays' alignment). */
-static void fft_slot(bispec *b, int k)
+/* slotpipe make: slot k windowed and transformed (fftwf_execute_dft_r2c
+ * on the handle's plans: every slot has the planned arrays' alignment). */
+static void fft_slot(void *ctx, int k)
 {
+    bispec *b = ctx;
     window_slot(b, k);
     fftwf_execute_dft_r2c(b->plan, b->in + (size_t)k * b->npad, b->out + (size_t)k * b->nhp);
     if (b->plan2)
@@ -158,73 +155,35 @@ static void spread_freq(bispec *b, int j, int k0, int n, int lane0)
     }
 }
 
-/* tpool job: the transforms of group fg claimed, then the spread of group
- * sg, SPREAD_CLAIM frequencies at a time, taken in the spectra's memory
- * order (sorder): in rank order each frequency read the staged spectra
- * at scattered places, a cache miss per frame and frequency once they
- * outgrow L2 (8 MB of spectra at 512^2).  The two touch different
- * groups. */
-static void stage_job(void *ctx, int tid, int n)
+/* slotpipe take: frequencies t SPREAD_CLAIM.. of slots k0..k0+n-1 into
+ * lanes nspread.., taken in the spectra's memory order (sorder): in rank
+ * order each frequency read the staged spectra at scattered places, a
+ * cache miss per frame and frequency once they outgrow L2 (8 MB of
+ * spectra at 512^2). */
+static void spread_task(void *ctx, int t, int k0, int n)
 {
     bispec *b = ctx;
-    (void)tid, (void)n;
-    for (int k; (k = atomic_fetch_add(&b->f_next, 1)) < b->fn;)
-        fft_slot(b, b->fg * BISPEC_GROUP + k);
-    for (int i0; b->sn && (i0 = atomic_fetch_add(&b->s_next, SPREAD_CLAIM)) < b->nf;) {
-        int i1 = i0 + SPREAD_CLAIM < b->nf ? i0 + SPREAD_CLAIM : b->nf;
-        for (int i = i0; i < i1; i++)
-            spread_freq(b, b->sorder[i], b->sg * BISPEC_GROUP, b->sn, b->slane);
-    }
+    int i0 = t * SPREAD_CLAIM, i1 = i0 + SPREAD_CLAIM < b->nf ? i0 + SPREAD_CLAIM : b->nf;
+    for (int i = i0; i < i1; i++)
+        spread_freq(b, b->sorder[i], k0, n, b->nspread);
 }
 
-/* Join the job (what is left of it on this thread, then its end): the
- * group it spread goes to the window sums, in frame order, and the group
- * it transformed waits to be spread. */
-static void stage_finish(bispec *b)
+/* slotpipe done: the spread slots' window sums, in frame order. */
+static void spread_done(void *ctx, int k0, int n)
 {
-    if (!b->inflight)
-        return;
-    stage_job(b, 0, 1);
-    if (b->submitted)
-        tpool_wait(b->pool);
-    for (int k = b->sg * BISPEC_GROUP; k < b->sg * BISPEC_GROUP + b->sn; k++) {
+    bispec *b = ctx;
+    for (int k = k0; k < k0 + n; k++) {
         b->w2sum += b->sw2[k];
         b->w3sum += b->sw3[k];
     }
-    b->nspread += b->sn;
-    b->pend = b->fg, b->pendn = b->fn;
-    b->inflight = b->submitted = 0;
+    b->nspread += n;
 }
 
-/* The next job: the filling group's frames and the pending group's
- * spread, started on the workers (joined by the next stage_finish); the
- * caller fills the other group meanwhile.  Also when draining: run by
- * the caller alone, a group took 4-5 ms of one thread at every batch's
- * end (512^2). */
-static void stage_submit(bispec *b)
+slotpipe *bispec_pipe_new(bispec *b)
 {
-    stage_finish(b);
-    b->fg = b->cur, b->fn = b->nstaged;
-    b->sg = b->pendn ? b->pend : 0, b->sn = b->pendn, b->slane = b->nspread;
-    b->pendn = 0;
-    atomic_store(&b->f_next, 0);
-    atomic_store(&b->s_next, 0);
-    b->cur ^= 1;
-    b->nstaged = 0;
-    b->inflight = 1;
-    b->submitted = tpool_size(b->pool) > 1;
-    if (b->submitted)
-        tpool_submit(b->pool, stage_job, b);
-}
-
-/* Every staged frame transformed and spread into the batch. */
-static void stage(bispec *b)
-{
-    while (b->inflight || b->nstaged || b->pendn) {
-        if (b->nstaged || b->pendn)
-            stage_submit(b);
-        stage_finish(b);
-    }
+    static const slotpipe_ops ops = {fft_slot, spread_task, spread_done};
+    return slotpipe_new(b->pool, BISPEC_GROUP, (b->nf + SPREAD_CLAIM - 1) / SPREAD_CLAIM,
+                        &ops, b);
 }
 
 /* Stage what is left, then run the kernel over the batch (the lanes of a
@@ -234,7 +193,7 @@ void bispec_flush(bispec *b)
 {
     if (!b->nb)
         return;
-    stage(b);
+    slotpipe_drain(b->pipe);
     int used = (b->nb + BISPEC_LANES - 1) / BISPEC_LANES * BISPEC_LANES;
     if (b->nb < used)
         for (size_t l = 0; l < 2 * (size_t)b->nf; l++)
@@ -262,7 +221,7 @@ int bispec_add(bispec *b, const float *frame)
     if (!b || !frame)
         return sl_seterr(b ? &b->err : NULL, SL_EINVAL,
                          "bispec_add: NULL argument");
-    size_t npx = (size_t)b->w * b->h, k = (size_t)b->cur * BISPEC_GROUP + b->nstaged;
+    size_t npx = (size_t)b->w * b->h, k = (size_t)slotpipe_slot(b->pipe);
     size_t bad = finite_copy(b->in + k * b->npad, frame, npx);
     if (bad < npx) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&b->err, SL_EDATA, "bispec_add: frame %d pixel %zu is not finite",
@@ -270,8 +229,7 @@ int bispec_add(bispec *b, const float *frame)
     b->n++;
     b->phased = 0;
     b->nb++;
-    if (++b->nstaged == BISPEC_GROUP)
-        stage_submit(b);
+    slotpipe_filled(b->pipe);
     if (b->nb == b->kb)
         bispec_flush(b);
     return SL_OK;

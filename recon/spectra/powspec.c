@@ -138,6 +138,8 @@ powspec *powspec_new(int w, int h, const powspec_opts *o, sl_err *err)
         goto fail_alloc;
     if (!(p->pool = tpool_new(o->nthreads > 1 ? o->nthreads : 1, err)))
         goto fail_pool;
+    if (!(p->pipe = powspec_pipe_new(p)))
+        goto fail_alloc;
     if (o->window != POWSPEC_WIN_NONE) {
         p->win = malloc(n * sizeof *p->win);
         if (!p->win)
@@ -169,6 +171,7 @@ void powspec_free(powspec *p)
 {
     if (!p)
         return;
+    slotpipe_free(p->pipe); /* a job in flight uses the plan and buffers */
     if (p->plan)
         fftwf_destroy_plan(p->plan);
     tpool_free(p->pool);

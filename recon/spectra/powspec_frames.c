@@ -1,32 +1,25 @@
 /* powspec_frames.c - frames into a powspec (powspec.h): each frame is
- * copied into a slot of the group filling; when the group is full (or a
- * result is asked for) a job on the handle's threads windows and
- * transforms its slots, a slot at a time, while the same job adds the
- * group transformed before it to the sums, a band of SUM_ROWS rows of the
- * half plane at a time, its slots in frame order; slots and bands are
- * claimed by whichever thread is free (fixed shares left one idle
- * whenever the read-ahead thread or the host slowed the other).  So every
- * sum takes the same operations in the same order as one frame at a time
- * on one thread: the same bits on any thread count.  The transforms were
- * the power spectrum pass's serial part (12 % of a one-thread direct run
- * at 512^2 x 400).
- *
- * Why two groups and a job that spans them: with one group, the caller
- * copied each frame in (and waited for the read-ahead) while the other
- * threads sat idle until the group was full, ~50 ms of one core in a
- * 512^2 x 400 direct run on two threads.  Now the caller fills one group
- * while the job runs on the other, and joins the job when the group is
- * full (the software pipeline of tsm_accum.c): a group's sums start only
- * after the job before (which transformed it) has ended, and the groups
- * are summed in order.
+ * copied into a slot; groups of slots are windowed and transformed, a
+ * slot at a time, and added to the sums, a band of SUM_ROWS rows of the
+ * half plane at a time, the slots in frame order, by the handle's
+ * threads in a pipeline (slotpipe.h: the caller fills one group while a
+ * job transforms the other and sums the group before); slots and bands
+ * are claimed by whichever thread is free (fixed shares left one idle
+ * whenever the read-ahead thread or the host slowed the other).  So
+ * every sum takes the same operations in the same order as one frame at
+ * a time on one thread: the same bits on any thread count.  The
+ * transforms were the power spectrum pass's serial part (12 % of a
+ * one-thread direct run at 512^2 x 400).
  */
 #include "base/finite.h"
 #include "powspec_int.h"
+
 #include <math.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+
 enum { SUM_ROWS = 8 };
+
 /* Slot s's alignment ramps: the frame's spectrum moved to its
  * first-harmonic centroid (the phase of F at (1, 0) and (0, 1) is the
  * circular centroid's) leaves per-frame tip-tilt out of the long
@@ -59,10 +52,11 @@ static void window_slot(powspec *p, int s)
     p->sw2[s] = w2flux;
 }
 
-/* Slot s windowed and transformed (new-array execute on the plan's
- * alignment), with its ramps. */
-static void fft_slot(powspec *p, int s)
+/* slotpipe make: slot s windowed and transformed (new-array execute on
+ * the plan's alignment), with its ramps. */
+static void fft_slot(void *ctx, int s)
 {
+    powspec *p = ctx;
     window_slot(p, s);
     fftwf_execute_dft_r2c(p->plan, p->in + (size_t)s * p->npad, p->out + (size_t)s * p->nhp);
     if (p->aft)
@@ -105,71 +99,36 @@ static void first_touch(powspec *p, int j0, int j1)
         memset(p->aft + k0, 0, (k1 - k0) * sizeof *p->aft);
 }
 
-/* tpool job: the transforms claimed, then the bands of rows claimed,
- * SUM_ROWS at a time.  The two touch different groups. */
-static void group_job(void *ctx, int tid, int n)
+/* slotpipe take: band t of SUM_ROWS rows, slots s0..s0+n-1 added. */
+static void sum_band(void *ctx, int t, int s0, int n)
 {
     powspec *p = ctx;
-    (void)tid, (void)n;
-    for (int s; (s = atomic_fetch_add(&p->f_next, 1)) < p->fn;)
-        fft_slot(p, p->fg * p->ns + s);
-    for (int j0; p->sn && (j0 = atomic_fetch_add(&p->s_next, SUM_ROWS)) < p->h;) {
-        int j1 = j0 + SUM_ROWS < p->h ? j0 + SUM_ROWS : p->h;
-        if (p->n == 0) /* nothing summed yet: see first_touch */
-            first_touch(p, j0, j1);
-        for (int j = j0; j < j1; j++)
-            sum_row(p, p->sg * p->ns, p->sn, j);
-    }
+    int j0 = t * SUM_ROWS, j1 = j0 + SUM_ROWS < p->h ? j0 + SUM_ROWS : p->h;
+    if (p->n == 0) /* nothing summed yet: see first_touch */
+        first_touch(p, j0, j1);
+    for (int j = j0; j < j1; j++)
+        sum_row(p, s0, n, j);
 }
 
-/* Join the job (what is left of it on this thread, then its end); the
- * group it summed goes to the scalar sums, in frame order, and the group
- * it transformed waits to be summed. */
-static void finish(powspec *p)
+/* slotpipe done: the summed slots' scalars, in frame order. */
+static void sum_scalars(void *ctx, int s0, int n)
 {
-    if (!p->inflight)
-        return;
-    group_job(p, 0, 1);
-    if (p->submitted)
-        tpool_wait(p->pool);
-    for (int s = p->sg * p->ns; s < p->sg * p->ns + p->sn; s++) {
+    powspec *p = ctx;
+    for (int s = s0; s < s0 + n; s++) {
         p->flux += p->sflux[s];
         p->w2flux += p->sw2[s];
         p->pbias += p->o.adu_per_photon * p->sw2[s] + p->rbias;
         p->n++;
     }
-    p->pend = p->fg, p->pendn = p->fn;
-    p->inflight = p->submitted = 0;
 }
 
-/* The next job: the filling group's staged frames and the pending
- * group's sums, started on the workers (joined by the next finish); the
- * other group fills meanwhile.  Also when draining (powspec_flush): run
- * by the caller alone, a group's transforms took 3-5 ms of one thread. */
-static void submit(powspec *p)
+slotpipe *powspec_pipe_new(powspec *p)
 {
-    finish(p);
-    p->fg = p->cur, p->fn = p->nstaged;
-    p->sg = p->pendn ? p->pend : 0, p->sn = p->pendn;
-    p->pendn = 0;
-    atomic_store(&p->f_next, 0);
-    atomic_store(&p->s_next, 0);
-    p->cur ^= 1;
-    p->nstaged = 0;
-    p->inflight = 1;
-    p->submitted = tpool_size(p->pool) > 1;
-    if (p->submitted)
-        tpool_submit(p->pool, group_job, p);
+    static const slotpipe_ops ops = {fft_slot, sum_band, sum_scalars};
+    return slotpipe_new(p->pool, p->ns, (p->h + SUM_ROWS - 1) / SUM_ROWS, &ops, p);
 }
 
-void powspec_flush(powspec *p)
-{
-    while (p->inflight || p->nstaged || p->pendn) {
-        if (p->nstaged || p->pendn)
-            submit(p);
-        finish(p);
-    }
-}
+void powspec_flush(powspec *p) { slotpipe_drain(p->pipe); }
 
 /* The frame into the next slot after one branch-free scan for NaN and
  * Inf; the window and the sums run with the transforms, on the threads
@@ -180,13 +139,12 @@ int powspec_add(powspec *p, const float *frame)
         return sl_seterr(p ? &p->err : NULL, SL_EINVAL,
                          "powspec_add: NULL argument");
     size_t n = (size_t)p->w * p->h;
-    size_t slot = (size_t)p->cur * p->ns + p->nstaged;
+    size_t slot = (size_t)slotpipe_slot(p->pipe);
     size_t bad = finite_copy(p->in + slot * p->npad, frame, n);
     if (bad < n) /* the slot is not taken: the next frame overwrites it */
         return sl_seterr(&p->err, SL_EDATA, "powspec_add: frame %d pixel %zu is not finite",
                          p->nadded, bad);
     p->nadded++;
-    if (++p->nstaged == p->ns)
-        submit(p);
+    slotpipe_filled(p->pipe);
     return SL_OK;
 }

@@ -6,8 +6,8 @@
 
 #include <complex.h>
 #include <fftw3.h>
-#include <stdatomic.h>
 
+#include "base/slotpipe.h"
 #include "base/tpool.h"
 #include "powspec.h"
 
@@ -26,14 +26,9 @@ struct powspec {
     fftwf_complex *out;   /* 2 ns slots of nhp: their spectra */
     size_t npad, nhp;     /* slot strides, 64-byte multiples (the plan's
                              alignment holds in every slot) */
-    int ns;               /* slots per group: group g is slots g ns.. */
-    int cur, nstaged;     /* the group filling, and its frames */
+    int ns;               /* slots per group (slotpipe.h: 2 ns slots) */
+    slotpipe *pipe;       /* the slots' pipeline (powspec_frames.c) */
     int nadded;           /* frames added: summed, in a job or staged */
-    /* The job (powspec_frames.c): group fg's fn transforms and group
-     * sg's sums of sn frames, claimed from f_next and s_next; pend, pendn:
-     * the group transformed and not yet summed (pendn 0: none). */
-    int inflight, submitted, fg, fn, sg, sn, pend, pendn;
-    atomic_int f_next, s_next;
     double *sflux, *sw2;  /* per slot: the frame's flux, sum w^2 frame */
     double complex *ex, *ey; /* per slot: wc and h alignment ramps */
     tpool *pool;          /* opts.nthreads */
@@ -52,5 +47,7 @@ struct powspec {
 /* Transform the staged frames and add them to the sums, in frame order
  * (powspec_frames.c); every reader of the sums calls it first. */
 void powspec_flush(powspec *p);
+/* The slots' pipeline for p (its pool, ns); NULL when out of memory. */
+slotpipe *powspec_pipe_new(powspec *p);
 
 #endif

@@ -7,7 +7,11 @@
 
 #define BIG_ALIGN ((uintptr_t)2 << 20)
 
-static uintptr_t span(size_t bytes) { return (bytes + BIG_ALIGN - 1) & ~(BIG_ALIGN - 1); }
+/* At least one huge page: a 0-byte buffer still maps one. */
+static uintptr_t span(size_t bytes)
+{
+    return ((bytes ? bytes : 1) + BIG_ALIGN - 1) & ~(BIG_ALIGN - 1);
+}
 
 void *bigmem_alloc(size_t bytes, int huge)
 {
@@ -33,12 +37,10 @@ void bigmem_release_share(void *p, size_t bytes, int tid, int n)
 {
     if (!p || n < 1 || tid < 0 || tid >= n)
         return;
-    uintptr_t a = (uintptr_t)p, len = span(bytes), cut[2];
-    for (int e = 0; e < 2; e++) /* share boundaries, rounded to 2 MB */
-        cut[e] = a + span((size_t)(len / BIG_ALIGN * (uintptr_t)(tid + e) / (uintptr_t)n) *
-                          BIG_ALIGN);
-    if (cut[1] > cut[0])
-        madvise((void *)cut[0], cut[1] - cut[0], MADV_DONTNEED);
+    uintptr_t a = (uintptr_t)p, pages = span(bytes) / BIG_ALIGN; /* huge pages */
+    uintptr_t p0 = pages * (uintptr_t)tid / (uintptr_t)n, p1 = pages * (uintptr_t)(tid + 1) / (uintptr_t)n;
+    if (p1 > p0)
+        madvise((void *)(a + p0 * BIG_ALIGN), (p1 - p0) * BIG_ALIGN, MADV_DONTNEED);
 }
 
 void bigmem_free(void *p, size_t bytes)

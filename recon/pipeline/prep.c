@@ -123,6 +123,13 @@ static int copy_calibrations(prep *p, const prep_opts *o)
     return SL_OK;
 }
 
+/* The sky median's scratch: the border band's pixels (at least one). */
+static size_t border_bytes(const prep *p)
+{
+    int b = p->o.border_px, nb = 2 * b * p->w + 2 * b * (p->h - 2 * b);
+    return sizeof(float) * (size_t)(nb > 0 ? nb : 1);
+}
+
 int prep_new(prep **out, int w, int h, const prep_opts *o, sl_err *err)
 {
     *out = NULL;
@@ -148,8 +155,7 @@ int prep_new(prep **out, int w, int h, const prep_opts *o, sl_err *err)
     }
     int rc = SL_OK;
     p->bad = calloc((size_t)w * h, 1);
-    int b = p->o.border_px, nb = 2 * b * w + 2 * b * (h - 2 * b);
-    p->border = malloc(sizeof(float) * (size_t)(nb > 0 ? nb : 1));
+    p->border = malloc(border_bytes(p));
     if (!p->bad || !p->border) {
         rc = sl_seterr(err, SL_ENOMEM, "out of memory");
         goto free_prep;
@@ -199,12 +205,12 @@ int prep_dup(prep **out, const prep *p, sl_err *err)
         return sl_seterr(err, SL_ENOMEM, "out of memory for a copy of the cleaning");
     *d = *p;
     size_t n = (size_t)p->w * p->h, f = sizeof(float);
-    int b = p->o.border_px, nb = 2 * b * p->w + 2 * b * (p->h - 2 * b), ok = 1;
+    int ok = 1;
     d->dark = dup_block(p->dark, n * f, &ok);
     d->invflat = dup_block(p->invflat, n * f, &ok);
     d->win = dup_block(p->win, n * f, &ok);
     d->bad = dup_block(p->bad, n, &ok);
-    d->border = dup_block(p->border, f * (size_t)(nb > 0 ? nb : 1), &ok);
+    d->border = dup_block(p->border, border_bytes(p), &ok);
     d->skyidx = dup_block(p->skyidx, sizeof(int) * (size_t)p->nsky, &ok);
     d->shifted = dup_block(p->shifted, n * f, &ok);
     if (!ok) {

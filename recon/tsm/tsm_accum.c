@@ -59,8 +59,8 @@ static size_t bsum_bytes(const tsm_accum *a)
 }
 
 /* tpool job: thread tid hands back its share of the bispectrum sums
- * (bigmem.h: ~100 MB at 512^2, whose unmapping was 5-15 ms of one thread
- * alone at the end of a run). */
+ * (bigmem.h: 2 x 24 MB at 512^2, 180 angles, unmapped by one thread alone
+ * at the end of a run before). */
 static void release_job(void *ctx, int tid, int nt)
 {
     tsm_accum *a = ctx;

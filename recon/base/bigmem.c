@@ -3,6 +3,7 @@
 #include "bigmem.h"
 
 #include <stdint.h>
+#include <string.h>
 #include <sys/mman.h>
 
 #define BIG_ALIGN ((uintptr_t)2 << 20)
@@ -33,14 +34,33 @@ void *bigmem_alloc(size_t bytes, int huge)
     return (void *)a;
 }
 
+/* Thread tid of n's share of the huge pages: [*b0, *b1) bytes from p. */
+static void share(size_t bytes, int tid, int n, uintptr_t *b0, uintptr_t *b1)
+{
+    uintptr_t pages = span(bytes) / BIG_ALIGN;
+    *b0 = pages * (uintptr_t)tid / (uintptr_t)n * BIG_ALIGN;
+    *b1 = pages * (uintptr_t)(tid + 1) / (uintptr_t)n * BIG_ALIGN;
+}
+
+void bigmem_touch_share(void *p, size_t bytes, int tid, int n)
+{
+    if (!p || n < 1 || tid < 0 || tid >= n)
+        return;
+    uintptr_t b0, b1;
+    share(bytes, tid, n, &b0, &b1);
+    b1 = b1 < bytes ? b1 : bytes; /* the span's tail past bytes stays unmapped */
+    if (b1 > b0)
+        memset((char *)p + b0, 0, b1 - b0);
+}
+
 void bigmem_release_share(void *p, size_t bytes, int tid, int n)
 {
     if (!p || n < 1 || tid < 0 || tid >= n)
         return;
-    uintptr_t a = (uintptr_t)p, pages = span(bytes) / BIG_ALIGN; /* huge pages */
-    uintptr_t p0 = pages * (uintptr_t)tid / (uintptr_t)n, p1 = pages * (uintptr_t)(tid + 1) / (uintptr_t)n;
-    if (p1 > p0)
-        madvise((void *)(a + p0 * BIG_ALIGN), (p1 - p0) * BIG_ALIGN, MADV_DONTNEED);
+    uintptr_t b0, b1;
+    share(bytes, tid, n, &b0, &b1);
+    if (b1 > b0)
+        madvise((char *)p + b0, b1 - b0, MADV_DONTNEED);
 }
 
 void bigmem_free(void *p, size_t bytes)

@@ -41,9 +41,9 @@ void tsm_free(tsm *t)
     if (!t)
         return;
     tsm_accum_free(t->acc);
+    tsm_phase_free(t->ph); /* both hand their pages back on the pool */
     tpool_free(t->pool);
     radon_free(t->rad);
-    tsm_phase_free(t->ph);
     void *m[] = {t->proj, t->pr, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
                  t->tr, t->pw};
     for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)

@@ -58,14 +58,31 @@ static size_t bsum_bytes(const tsm_accum *a)
     return ((size_t)a->nang * a->np + 1) * sizeof(double);
 }
 
-/* tpool job: thread tid hands back its share of the bispectrum sums
- * (bigmem.h: 2 x 24 MB at 512^2, 180 angles, unmapped by one thread alone
- * at the end of a run before). */
+/* A block's frames' and spectra's bytes (bigmem.h). */
+static size_t frames_bytes(const tsm_accum *a)
+{
+    return (size_t)a->batch * a->w * a->h * sizeof(float);
+}
+static size_t spec_bytes(const tsm_accum *a)
+{
+    return (size_t)a->batch * a->nang * a->nf * sizeof(float complex);
+}
+
+/* tpool job: thread tid hands back its share of the bispectrum sums and
+ * of the blocks (bigmem.h), and frees its own scratch.  At 512^2, 180
+ * angles: sums 2 x 24 MB, blocks 2 x 11 MB, scratch 8.5 MB a thread, all
+ * unmapped by one thread alone at the end of a run before. */
 static void release_job(void *ctx, int tid, int nt)
 {
     tsm_accum *a = ctx;
     bigmem_release_share(a->bre, bsum_bytes(a), tid, nt);
     bigmem_release_share(a->bim, bsum_bytes(a), tid, nt);
+    for (int b = 0; b < 2; b++) {
+        bigmem_release_share(a->blk[b].frames, frames_bytes(a), tid, nt);
+        bigmem_release_share(a->blk[b].spec, spec_bytes(a), tid, nt);
+    }
+    radon_ws_free(a->ws[tid]);
+    a->ws[tid] = NULL;
 }
 
 void tsm_accum_free(tsm_accum *a)
@@ -77,8 +94,10 @@ void tsm_accum_free(tsm_accum *a)
         tpool_run(a->pool, release_job, a);
     for (int i = 0; i < a->nthreads; i++)
         radon_ws_free(a->ws[i]);
-    for (int b = 0; b < 2; b++)
-        free(a->blk[b].frames), free(a->blk[b].spec);
+    for (int b = 0; b < 2; b++) {
+        bigmem_free(a->blk[b].frames, frames_bytes(a));
+        bigmem_free(a->blk[b].spec, spec_bytes(a));
+    }
     bigmem_free(a->bre, bsum_bytes(a));
     bigmem_free(a->bim, bsum_bytes(a));
     void *m[] = {a->scr, a->ps, a->mre, a->mim};
@@ -116,12 +135,19 @@ static void zero_sums(tsm_accum *a)
 
 /* tpool job at tsm_accum_new: thread tid's scratch (a radon_ws, ~12
  * (sigma N)^2 bytes, zeroed: 11 MB at 512^2, whose page faults took ~8 ms
- * when one thread made them all), then its share of the sums. */
+ * when one thread made them all), then its share of the sums and of the
+ * blocks: the first block's frames were otherwise faulted in by the
+ * caller alone as it staged them, while the other threads waited for
+ * that block (~3 MB at 512^2). */
 static void setup_job(void *ctx, int tid, int nt)
 {
     tsm_accum *a = ctx;
     a->ws[tid] = a->spatial ? radon_ws_new_projector(a->rad, NULL) : radon_ws_new(a->rad, NULL);
     zero_job(a, tid, nt);
+    for (int b = 0; b < 2; b++) {
+        bigmem_touch_share(a->blk[b].frames, frames_bytes(a), tid, nt);
+        bigmem_touch_share(a->blk[b].spec, spec_bytes(a), tid, nt);
+    }
 }
 
 void tsm_accum_reset(tsm_accum *a)
@@ -164,8 +190,8 @@ tsm_accum *tsm_accum_new(const radon *rad, int w, int h, int nang, int nf,
     int ok = 1;
     for (int b = 0; b < 2; b++) {
         block *k = &a->blk[b];
-        k->spec = malloc((size_t)batch * ns * sizeof *k->spec);
-        k->frames = malloc((size_t)batch * w * h * sizeof *k->frames);
+        k->spec = bigmem_alloc(spec_bytes(a), 0);
+        k->frames = bigmem_alloc(frames_bytes(a), 0);
         ok &= k->spec && k->frames;
     }
     a->scr = calloc((size_t)nt * 2 * GROUP * (nf + 4), sizeof *a->scr);

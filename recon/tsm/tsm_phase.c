@@ -46,6 +46,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/bigmem.h"
 #include "base/tpool.h"
 
 enum { PHASE_MAX_WS = 64 };
@@ -81,12 +82,30 @@ static void ws_free(phase_ws *w)
 
 static int ws_alloc(const tsm_phase *p, phase_ws *w);
 
+/* The phasors' and weights' bytes (bigmem.h). */
+static size_t ph_bytes(const tsm_phase *p) { return ((size_t)p->nang * p->np * 2 + 1) * sizeof(float); }
+static size_t wt_bytes(const tsm_phase *p) { return ((size_t)p->nang * p->np + 1) * sizeof(float); }
+
+/* tpool job: thread tid hands back its share of the phasors and weights
+ * (23 + 12 MB at 512^2, 180 angles, unmapped by one thread alone at the
+ * end of a run before). */
+static void release_job(void *ctx, int tid, int nt)
+{
+    tsm_phase *p = ctx;
+    bigmem_release_share(p->ph, ph_bytes(p), tid, nt);
+    bigmem_release_share(p->wt, wt_bytes(p), tid, nt);
+}
+
 void tsm_phase_free(tsm_phase *p)
 {
     if (!p)
         return;
+    if (p->pool && tpool_size(p->pool) > 1)
+        tpool_run(p->pool, release_job, p);
     free(p->off), free(p->len), free(p->pu1), free(p->pu2);
-    free(p->ph), free(p->wt), free(p->kq);
+    bigmem_free(p->ph, ph_bytes(p));
+    bigmem_free(p->wt, wt_bytes(p));
+    free(p->kq);
     free(p->qs), free(p->nk);
     for (int i = 0; i < p->nws; i++)
         ws_free(&p->ws[i]);
@@ -128,8 +147,8 @@ tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err)
     size_t np = (size_t)p->np, na = (size_t)nangles;
     p->pu1 = malloc((np + 1) * sizeof *p->pu1);
     p->pu2 = malloc((np + 1) * sizeof *p->pu2);
-    p->ph = calloc(na * np * 2 + 1, sizeof *p->ph);
-    p->wt = calloc(na * np + 1, sizeof *p->wt);
+    p->ph = bigmem_alloc(ph_bytes(p), 0);
+    p->wt = bigmem_alloc(wt_bytes(p), 0);
     p->nws = 1;
     p->kq = malloc((np + 1) * sizeof *p->kq);
     p->qs = malloc((np + 1) * sizeof *p->qs);

@@ -1,8 +1,11 @@
 /* test_bigmem.c - big buffers: 2 MB aligned, zero-filled, writable to
  * the byte asked for; the shares of any thread count cover the buffer
- * once, and a released buffer reads as zeros. */
+ * once, and a released buffer reads as zeros; a touched share is resident
+ * and nothing else is. */
 #include <stdint.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "base/bigmem.h"
 #include "tcheck.h"
@@ -67,4 +70,48 @@ TEST(shares_cover_the_buffer_once)
     }
 }
 
-TC_MAIN(TC_CASE(aligned_zeroed_and_writable), TC_CASE(shares_cover_the_buffer_once))
+/* Pages of p[0..n) resident (mincore): *first, the first one (n pages
+ * when none); the count. */
+static size_t resident(const void *p, size_t n, size_t *first)
+{
+    size_t pg = (size_t)sysconf(_SC_PAGESIZE), np = (n + pg - 1) / pg, total = 0;
+    unsigned char v[8192];
+    *first = np;
+    if (np > sizeof v || mincore((void *)p, n, v) != 0)
+        return (size_t)-1;
+    for (size_t i = np; i-- > 0;)
+        if (v[i] & 1)
+            total++, *first = i;
+    return total;
+}
+
+/* Touched one share at a time from the last, the resident pages are
+ * exactly those from each share's start to the buffer's last byte: no
+ * page before the share, none past the buffer in its 10 MB mapping; the
+ * buffer reads as zeros. */
+TEST(touched_shares_fault_their_pages_only)
+{
+    size_t n = 9 * MB + 4000, pg = (size_t)sysconf(_SC_PAGESIZE), span = 10 * MB;
+    size_t last = (n + pg - 1) / pg, huge = span / (2 * MB);
+    for (int nt = 1; nt <= 6; nt++) {
+        unsigned char *p = bigmem_alloc(n, 0);
+        CHECK(p, "no buffer");
+        if (!p)
+            return;
+        size_t first;
+        CHECK(resident(p, span, &first) == 0, "%d threads: resident before", nt);
+        for (int sh = nt - 1; sh >= 0; sh--) {
+            bigmem_touch_share(p, n, sh, nt);
+            size_t start = huge * sh / nt * 2 * MB / pg, total = resident(p, span, &first);
+            CHECK(total == last - start && first == start, "%d threads, share %d: %zu pages "
+                  "resident from page %zu, not %zu from %zu", nt, sh, total, first,
+                  last - start, start);
+        }
+        CHECK(all_equal(p, n, 0), "%d threads: touched buffer not zero", nt);
+        bigmem_touch_share(p, n, nt, nt); /* out of range: nothing */
+        bigmem_free(p, n);
+    }
+}
+
+TC_MAIN(TC_CASE(aligned_zeroed_and_writable), TC_CASE(shares_cover_the_buffer_once),
+        TC_CASE(touched_shares_fault_their_pages_only))

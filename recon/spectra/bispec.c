@@ -42,8 +42,7 @@ void *bispec_alloc(bispec *b, size_t bytes)
 }
 
 /* The same without the zeroing, for a buffer its maker writes whole (the
- * triple list, filled by the pool's threads: 72 MB at 512^2, whose
- * serial memset and page faults were ~40 ms of one thread alone). */
+ * frame slots and their spectra). */
 void *bispec_alloc_unzeroed(bispec *b, size_t bytes)
 {
     size_t sz = (bytes + 63) / 64 * 64;
@@ -53,18 +52,19 @@ void *bispec_alloc_unzeroed(bispec *b, size_t bytes)
     return p;
 }
 
-/* A big zeroed buffer (the accumulators, the batch buffer): fresh
- * anonymous pages, 2 MB aligned, with transparent huge pages asked for
- * (bigmem.h).  The kernel zeroes them when first touched, which the
- * kernel threads do, each on its own range, instead of a serial memset
- * here; and huge pages spare the TLB the batch buffer's scattered u1
- * reads (one 2 MB entry instead of 512).  Counted in b->mem; handed back
- * by the pool's threads and unmapped by bispec_free. */
-static void *big_alloc(bispec *b, size_t bytes)
+/* A big zeroed buffer (the accumulators, the batch buffer, the triple
+ * list): fresh anonymous pages, 2 MB aligned, with transparent huge pages
+ * asked for when huge (bigmem.h).  The kernel zeroes them when first
+ * touched, which the threads that fill them do, each on its own range,
+ * instead of a serial memset here; and huge pages spare the TLB the batch
+ * buffer's scattered u1 reads (one 2 MB entry instead of 512).  Counted
+ * in b->mem; handed back by the pool's threads and unmapped by
+ * bispec_free. */
+void *bispec_alloc_big(bispec *b, size_t bytes, int huge)
 {
     if (b->nmap == BISPEC_NMAP)
         return NULL;
-    void *p = bigmem_alloc(bytes, 1);
+    void *p = bigmem_alloc(bytes, huge);
     if (!p)
         return NULL;
     b->map[b->nmap] = p;
@@ -125,8 +125,9 @@ static int alloc_buffers(bispec *b)
     size_t ns = BISPEC_SLOTS;
     b->npad = (npx + 15) / 16 * 16;
     b->nhp = (nh + 7) / 8 * 8;
-    if (!(acc = big_alloc(b, 2 * nt * asz)) || (snr && !(acc2 = big_alloc(b, nt * asz))) ||
-        !(b->fb = big_alloc(b, nf * 2 * 2 * (size_t)b->kb * sizeof(float))))
+    if (!(acc = bispec_alloc_big(b, 2 * nt * asz, 1)) ||
+        (snr && !(acc2 = bispec_alloc_big(b, nt * asz, 1))) ||
+        !(b->fb = bispec_alloc_big(b, nf * 2 * 2 * (size_t)b->kb * sizeof(float), 1)))
         return SL_ENOMEM;
     if (o->acc_float)
         b->accf = acc, b->acc2f = acc2;
@@ -267,7 +268,7 @@ void bispec_free(bispec *b)
     for (int i = 0; i < b->nmap; i++)
         bigmem_free(b->map[i], b->maplen[i]);
     void *bufs[] = {b->fp,   b->fq,    b->ubase, b->seed,  b->lut,  b->doff,
-                    b->dleg, b->tstart, b->tk,   b->kunit, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
+                    b->dleg, b->tstart, b->kunit, b->order, b->sorder, b->tbeg, b->drow, b->dfirst, b->psum,  b->xsum, b->phi,
                     b->known, b->work, b->win,   b->in,    b->out,  b->in2,
                     b->out2, b->cin,   b->cout, b->w2ft};
     for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++)

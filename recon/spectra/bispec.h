@@ -23,7 +23,7 @@
  *   bytes = T * (2 + A * (1 + s/2))
  *         + F * (95 + 16 kb + 16 * ph) + 8 + 8 * (2 R2 + 1)^2 + 4 * (2 R2 + 2)
  *         + 4 * (2 R2 + 1) * (2 R2 + 2)
- *         + 4 * (BISPEC_KUNITS + 1)    [= 516: the kernel's work units]
+ *         + 4 * (BISPEC_KUNITS + 1)    [= 2052: the kernel's work units]
  *         + 4 * (w + 2 R2 + 1) * (h + 2 R2 + 1)          [even w, h]
  *         + w*h * (8 + 4 * win + 32 * (1 + ph * win))
  *         + h * (w/2 + 1) * (16 + 64 * (1 + ph * win))

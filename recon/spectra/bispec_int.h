@@ -24,8 +24,13 @@
 /* and the u2 disk's rows in segments of BISPEC_SEG entries (bispec_kernel.c) */
 #define BISPEC_SEG 16
 /* The kernel's work units, claimed by whichever thread is free: a fixed
- * number, so their cut does not depend on the thread count. */
-#define BISPEC_KUNITS 128
+ * number, so their cut does not depend on the thread count.  The last
+ * unit of a batch runs on one thread while the others wait, half a unit
+ * on average: at 128 units that was ~2.7 ms a batch at 512^2 x 400 on
+ * two threads (a unit ~5.5 ms of CPU), and would be ~6 % of the kernel
+ * on 16; at 512 a quarter of that.  Units are cut at tile starts, so at
+ * small sizes many are empty (a claim is one atomic add). */
+#define BISPEC_KUNITS 512
 typedef float vk __attribute__((vector_size(BISPEC_LANES * sizeof(float))));
 
 struct bispec {
@@ -55,8 +60,8 @@ struct bispec {
                               * ranges of order[] of about equal triple
                               * counts, cut at tile starts */
     double *accd, *acc2d;    /* 2 per triple; 1 per triple */
-#define BISPEC_NMAP 3
-    void *map[BISPEC_NMAP];  /* acc, acc2 and fb (big_alloc: bigmem.h) */
+#define BISPEC_NMAP 4
+    void *map[BISPEC_NMAP];  /* acc, acc2, fb and tk (bispec_alloc_big) */
     size_t maplen[BISPEC_NMAP]; /* their bytes */
     int nmap;
     float *accf, *acc2f;
@@ -98,6 +103,10 @@ static inline size_t bispec_fidx(int p, int q, int w, int h)
 /* Zeroed, 64-byte aligned, counted in b->mem (bispec.c). */
 void *bispec_alloc(bispec *b, size_t bytes);
 void *bispec_alloc_unzeroed(bispec *b, size_t bytes);
+/* Zeroed on first touch, 2 MB aligned, huge pages asked for when huge;
+ * its pages handed back by the pool's threads at bispec_free (bigmem.h).
+ * At most BISPEC_NMAP such buffers. */
+void *bispec_alloc_big(bispec *b, size_t bytes, int huge);
 
 /* Frequencies, lut, disk, triples, target order and thread ranges
  * (bispec_graph.c).  SL_ENOMEM, or SL_EDATA with the message in err. */

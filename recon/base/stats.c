@@ -12,7 +12,9 @@
 #include "stats.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 static uint32_t key_of(float f)
@@ -48,6 +50,75 @@ float stats_median_inplace(float *v, size_t n)
     }
     /* the key is the k-th value's bits: map back */
     uint32_t u = (prefix & 0x80000000u) ? prefix & 0x7fffffffu : ~prefix;
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+/* stats_median_where's passes: each band's histogram of the selected
+ * keys that share the prefix, made whole by whichever thread claims it. */
+enum { MW_BANDS = 16, MW_BINS = 2048 };
+typedef struct mw_job {
+    const float *v, *key;
+    double below;
+    size_t n;
+    uint32_t prefix, pmask, digit;
+    int shift;
+    size_t (*hist)[MW_BINS]; /* MW_BANDS histograms */
+    atomic_int next;
+} mw_job;
+
+static void mw_run(void *ctx, int tid, int nthr)
+{
+    mw_job *j = ctx;
+    (void)tid, (void)nthr;
+    for (int b; (b = atomic_fetch_add(&j->next, 1)) < MW_BANDS;) {
+        size_t *h = j->hist[b], i1 = j->n * (b + 1) / MW_BANDS;
+        memset(h, 0, MW_BINS * sizeof *h);
+        for (size_t i = j->n * b / MW_BANDS; i < i1; i++) {
+            uint32_t key = key_of(j->v[i]);
+            int sel = !isnan(j->v[i]) && (!j->key || j->key[i] <= j->below);
+            if (sel && (key & j->pmask) == j->prefix)
+                h[(key >> j->shift) & j->digit]++;
+        }
+    }
+}
+
+float stats_median_where(tpool *pool, const float *v, const float *key, double below,
+                         size_t n)
+{
+    static const int shift[3] = {21, 10, 0};
+    static const uint32_t digit[3] = {0x7ff, 0x7ff, 0x3ff};
+    mw_job j = {.v = v, .key = key, .below = below, .n = n};
+    if (!(j.hist = malloc(sizeof *j.hist * MW_BANDS)))
+        return NAN;
+    size_t k = 0, hist[MW_BINS];
+    for (int pass = 0; pass < 3; pass++) {
+        j.shift = shift[pass], j.digit = digit[pass];
+        atomic_init(&j.next, 0);
+        if (pool && tpool_size(pool) > 1)
+            tpool_run(pool, mw_run, &j);
+        else
+            mw_run(&j, 0, 1);
+        size_t sel = 0;
+        for (int b = 0; b < MW_BINS; b++) {
+            hist[b] = 0;
+            for (int i = 0; i < MW_BANDS; i++)
+                hist[b] += j.hist[i][b];
+            sel += hist[b];
+        }
+        if (pass == 0 && (k = sel / 2, sel == 0)) {
+            free(j.hist);
+            return 0;
+        }
+        uint32_t b = 0;
+        while (k >= hist[b])
+            k -= hist[b++];
+        j.prefix |= b << j.shift;
+        j.pmask |= j.digit << j.shift;
+    }
+    free(j.hist);
+    uint32_t u = (j.prefix & 0x80000000u) ? j.prefix & 0x7fffffffu : ~j.prefix;
     float f;
     memcpy(&f, &u, sizeof f);
     return f;

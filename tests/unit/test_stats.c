@@ -35,6 +35,42 @@ TEST(median_equals_sorted_middle)
     CHECK(stats_median_inplace(v, 0) == 0, "empty");
 }
 
+/* stats_median_where: the sorted middle of the selected, non-NaN values
+ * (key <= below, or all), on pools of 1-3 threads and without one, for
+ * sizes below, at and above the 16 bands (some bands empty), with ties,
+ * negative zeros and NaNs; 0 when nothing is selected. */
+TEST(median_where_equals_sorted_middle_of_the_selection)
+{
+    rng r;
+    rng_init(&r, 5, 0);
+    tpool *pools[4] = {NULL, tpool_new(1, NULL), tpool_new(2, NULL), tpool_new(3, NULL)};
+    size_t nmax = 5000;
+    float *v = malloc(nmax * sizeof *v), *key = malloc(nmax * sizeof *key);
+    float *w = malloc(nmax * sizeof *w);
+    for (int trial = 0; trial < 200 && v && key && w; trial++) {
+        size_t n = trial < 20 ? (size_t)trial : 1 + rng_u64(&r) % nmax, k = 0;
+        double below = trial % 4 == 3 ? INFINITY : rng_normal(&r);
+        for (size_t i = 0; i < n; i++) {
+            uint64_t u = rng_u64(&r);
+            v[i] = trial % 3 == 0 ? (float)(u % 4) - 2.0f : (float)rng_normal(&r);
+            v[i] = u % 97 == 0 ? NAN : u % 89 == 0 ? -0.0f : v[i];
+            key[i] = (float)rng_normal(&r);
+            if (!isnan(v[i]) && key[i] <= below)
+                w[k++] = v[i];
+        }
+        qsort(w, k, sizeof *w, cmpf);
+        for (int p = 0; p < 4; p++) {
+            float m = stats_median_where(pools[p], v, key, below, n);
+            int same = k ? memcmp(&m, &w[k / 2], sizeof m) == 0 || m == w[k / 2] : m == 0;
+            CHECK(same, "n %zu, %zu selected, pool %d: got %g, sorted middle %g", n, k, p, m,
+                  k ? w[k / 2] : 0.0);
+        }
+    }
+    for (int p = 0; p < 4; p++)
+        tpool_free(pools[p]);
+    free(v), free(key), free(w);
+}
+
 /* finite_scan: n when all finite; else the first NaN or Inf, wherever it
  * lies against the 8-lane blocks (first, inside, last block, the tail),
  * and huge finite values are finite. */
@@ -70,4 +106,6 @@ TEST(finite_scan_finds_the_first_bad_value)
     CHECK(finite_copy(c, v, 0) == 0, "empty copy");
 }
 
-TC_MAIN(TC_CASE(median_equals_sorted_middle), TC_CASE(finite_scan_finds_the_first_bad_value))
+TC_MAIN(TC_CASE(median_equals_sorted_middle),
+        TC_CASE(median_where_equals_sorted_middle_of_the_selection),
+        TC_CASE(finite_scan_finds_the_first_bad_value))

@@ -90,7 +90,7 @@ int bispec_image(bispec *b, const double *modulus, float *img)
     for (int j = 0; j < b->nf; j++)
         mod[j] = modulus ? modulus[bispec_fidx(b->fp[j], b->fq[j], w, h)]
                          : sqrt(fmax(b->psum[j] / b->n - pbias, 0.0));
-    phasor_halfspec(b->nf, b->fp, b->fq, b->phi, b->known, mod,
+    phasor_halfspec(b->pool, b->nf, b->fp, b->fq, b->phi, b->known, mod,
                     b->o.taper_frac, w, h, (double *)b->cin);
     fftw_execute(b->iplan);
     double sc = 1.0 / ((double)w * h);

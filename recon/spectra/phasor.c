@@ -9,6 +9,7 @@
 #include "phasor_int.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -62,6 +63,8 @@ void phasor_export(int nfreq, const int32_t *fp, const int32_t *fq,
                    const double *phi, const unsigned char *known, int w,
                    int h, double *phase, unsigned char *known_full)
 {
+    if (!phase && !known_full)
+        return; /* bispec_phase's solve-only call */
     size_t npx = (size_t)w * h;
     if (phase)
         memset(phase, 0, npx * sizeof *phase);
@@ -78,35 +81,70 @@ void phasor_export(int nfreq, const int32_t *fp, const int32_t *fq,
     }
 }
 
-void phasor_halfspec(int nfreq, const int32_t *fp, const int32_t *fq,
+/* phasor_halfspec's frequencies in fixed chunks, claimed by any thread;
+ * each writes only its own frequencies' cells. */
+enum { HALF_CHUNK = 2048 };
+typedef struct half_job {
+    const int32_t *fp, *fq;
+    const double *phi, *mod;
+    const unsigned char *known;
+    int nfreq, w, h;
+    double r0, r1, r0sq; /* r0sq: below it hypot(p, q) <= r0 surely */
+    double *cin;
+    atomic_int next;
+} half_job;
+
+static void half_run(void *ctx, int tid, int nthr)
+{
+    half_job *J = ctx;
+    int w = J->w, h = J->h, wc = w / 2 + 1;
+    (void)tid, (void)nthr;
+    for (int j0; (j0 = atomic_fetch_add(&J->next, HALF_CHUNK)) < J->nfreq;)
+        for (int j = j0; j < J->nfreq && j < j0 + HALF_CHUNK; j++) {
+            if (!J->known[j])
+                continue;
+            int p = J->fp[j], q = J->fq[j];
+            double tap = 1.0;
+            if ((double)p * p + (double)q * q >= J->r0sq) {
+                double r = hypot(p, q);
+                tap = r <= J->r0 ? 1.0 : 0.5 * (1.0 + cos(M_PI * (r - J->r0) / (J->r1 - J->r0)));
+            }
+            double ph = J->phi[j] - 2.0 * M_PI * ((double)p * (w / 2) / w +
+                                                  (double)q * (h / 2) / h);
+            double re = J->mod[j] * tap * cos(ph), im = J->mod[j] * tap * sin(ph);
+            size_t k = (size_t)((q + h) % h) * wc + (size_t)p;
+            J->cin[2 * k] = re;
+            J->cin[2 * k + 1] = im;
+            if (p == 0 && q > 0) { /* the p = 0 column holds both signs of q */
+                k = (size_t)(h - q) * wc;
+                J->cin[2 * k] = re;
+                J->cin[2 * k + 1] = -im;
+            }
+        }
+}
+
+void phasor_halfspec(tpool *pool, int nfreq, const int32_t *fp, const int32_t *fq,
                      const double *phi, const unsigned char *known,
                      const double *mod, double taper_frac, int w, int h,
                      double *cin)
 {
     int wc = w / 2 + 1;
     double rmax = 0;
+    long r2max = -1; /* hypot only where |u|^2 reaches the largest so far */
     for (int j = 0; j < nfreq; j++)
-        if (known[j])
-            rmax = fmax(rmax, hypot(fp[j], fq[j]));
-    double r0 = rmax * (1.0 - taper_frac), r1 = rmax + 1.0;
-    memset(cin, 0, (size_t)h * wc * 2 * sizeof *cin);
-    for (int j = 0; j < nfreq; j++) {
-        if (!known[j])
-            continue;
-        int p = fp[j], q = fq[j];
-        double r = hypot(p, q);
-        double tap = r <= r0 ? 1.0
-                             : 0.5 * (1.0 + cos(M_PI * (r - r0) / (r1 - r0)));
-        double ph = phi[j] - 2.0 * M_PI * ((double)p * (w / 2) / w +
-                                           (double)q * (h / 2) / h);
-        double re = mod[j] * tap * cos(ph), im = mod[j] * tap * sin(ph);
-        size_t k = (size_t)((q + h) % h) * wc + (size_t)p;
-        cin[2 * k] = re;
-        cin[2 * k + 1] = im;
-        if (p == 0 && q > 0) { /* the p = 0 column holds both signs of q */
-            k = (size_t)(h - q) * wc;
-            cin[2 * k] = re;
-            cin[2 * k + 1] = -im;
+        if (known[j]) {
+            long r2 = (long)fp[j] * fp[j] + (long)fq[j] * fq[j];
+            if (r2 >= r2max) {
+                double r = hypot(fp[j], fq[j]);
+                rmax = r2 > r2max || r > rmax ? r : rmax;
+                r2max = r2;
+            }
         }
-    }
+    half_job J = {.fp = fp, .fq = fq, .phi = phi, .mod = mod, .known = known,
+                  .nfreq = nfreq, .w = w, .h = h, .cin = cin,
+                  .r0 = rmax * (1.0 - taper_frac), .r1 = rmax + 1.0};
+    J.r0sq = J.r0 * J.r0 * (1 - 1e-9);
+    atomic_init(&J.next, 0);
+    memset(cin, 0, (size_t)h * wc * 2 * sizeof *cin);
+    tpool_run_or_inline(pool, half_run, &J);
 }

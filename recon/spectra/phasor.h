@@ -120,8 +120,10 @@ void phasor_export(int nfreq, const int32_t *fp, const int32_t *fq,
  * the known u_j, zero elsewhere, times a raised-cosine taper that is 1 up
  * to (1 - taper_frac) r_max and reaches 0 at r_max + 1 (r_max the largest
  * known |u|, so the outermost ring keeps a little weight), times
- * exp(-i k.c) which puts the phase origin at c = (w/2, h/2). */
-void phasor_halfspec(int nfreq, const int32_t *fp, const int32_t *fq,
+ * exp(-i k.c) which puts the phase origin at c = (w/2, h/2).  On the
+ * pool's threads (NULL: this one), each frequency by one thread: the same
+ * bits on any thread count. */
+void phasor_halfspec(struct tpool *pool, int nfreq, const int32_t *fp, const int32_t *fq,
                      const double *phi, const unsigned char *known,
                      const double *mod, double taper_frac, int w, int h,
                      double *cin);

@@ -60,6 +60,7 @@ static int sequence_powspec(stream *s, const pipeline_opts *o, double g,
     po.adu_per_photon = g;
     if (g > 0)
         po.read_noise_adu = stream_read_noise_adu(s, photons);
+    stream_prefetch(s); /* the first frames read while the plans are made */
     powspec *p = powspec_new(s->w, s->h, &po, err);
     if (!p)
         return err ? err->code : SL_ENOMEM;
@@ -349,6 +350,7 @@ free_all:
 
 static int tsm_sequence(stream *s, const tsm_opts *to, tsm **out, sl_err *err)
 {
+    stream_prefetch(s); /* the first frames read while the plans are made */
     tsm *t = tsm_new(s->w, s->h, to, err);
     if (!t)
         return err ? err->code : SL_ENOMEM;

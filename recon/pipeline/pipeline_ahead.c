@@ -31,6 +31,12 @@
  * slot (k - k0) mod nslot; its reader waits until the frame nslot before
  * it has been added.
  *
+ * A pass may be started before it is fed (stream_prefetch): the readers
+ * fill the ring while the caller makes the estimator's plans, which are
+ * mostly serial, so the first frames no longer wait for a reader once the
+ * plan is done; the next feed of the same range takes the readers over,
+ * and one of another range drops them.
+ *
  * Memory: the ring (at most AHEAD_BYTES beyond AHEAD_MIN frames), until
  * stream_close; per extra reader, for the pass, a copy of the cleaning
  * (~5-13 bytes a pixel).  Threads: s->readers more than the caller's, for
@@ -68,6 +74,7 @@ struct ahead {
                                * its code, and that reader */
     int stop;               /* an add failed, or the pass is over: stop */
     int running;            /* readers not finished */
+    int running_started;    /* the readers were started (ahead_end joins) */
     pthread_mutex_t mu;
     pthread_cond_t free_cv, ready_cv;
     reader rdr[AHEAD_READERS_MAX];
@@ -214,46 +221,88 @@ static int start_readers(ahead *a)
                 pthread_join(a->rdr[i].th, NULL);
             return 0;
         }
+    a->running_started = 1;
     return 1;
+}
+
+static int ahead_end(ahead *a, int rc, sl_err *err);
+
+/* The readers of a pass over [k0, k1) started (on the heap: a prefetch
+ * outlives its caller's frame); NULL when there is no ring or no thread
+ * to be had (the caller reads serially). */
+static ahead *ahead_start(stream *s, int k0, int k1)
+{
+    ahead *a = calloc(1, sizeof *a);
+    if (!a)
+        return NULL;
+    *a = (ahead){.s = s, .k0 = k0, .k1 = k1, .added = k0, .bad_k = k1};
+    if (!(a->nslot = ring_slots(s, k0, k1)) || !(a->slot_k = malloc(sizeof *a->slot_k * a->nslot))) {
+        free(a);
+        return NULL;
+    }
+    a->ring = s->ring;
+    for (int i = 0; i < a->nslot; i++)
+        a->slot_k[i] = -1;
+    pthread_mutex_init(&a->mu, NULL);
+    pthread_cond_init(&a->free_cv, NULL);
+    pthread_cond_init(&a->ready_cv, NULL);
+    make_readers(a);
+    if (start_readers(a))
+        return a;
+    ahead_end(a, SL_OK, NULL);
+    return NULL;
+}
+
+/* Stop and join a's readers (if they run), free a; rc, or the first
+ * frame a reader refused when rc is SL_OK. */
+static int ahead_end(ahead *a, int rc, sl_err *err)
+{
+    if (a->running_started) {
+        pthread_mutex_lock(&a->mu); /* readers past a refused frame may wait */
+        a->stop = 1;
+        pthread_cond_broadcast(&a->free_cv);
+        pthread_mutex_unlock(&a->mu);
+        for (int j = 0; j < a->nread; j++)
+            pthread_join(a->rdr[j].th, NULL);
+        if (rc == SL_OK && a->bad_k < a->k1)
+            rc = sl_seterr(err, a->bad_rc, "%s", cube_reader_errmsg(a->rdr[a->bad_j].rd));
+    }
+    for (int j = 1; j < a->nread; j++) {
+        cube_reader_free(a->rdr[j].rd);
+        prep_free(a->rdr[j].pp);
+    }
+    pthread_cond_destroy(&a->ready_cv);
+    pthread_cond_destroy(&a->free_cv);
+    pthread_mutex_destroy(&a->mu);
+    free(a->slot_k);
+    free(a);
+    return rc;
+}
+
+void stream_prefetch(stream *s)
+{
+    if (s->ahead && !s->pb && !s->pre)
+        s->pre = ahead_start(s, s->k0, s->k1);
+}
+
+void stream_prefetch_cancel(stream *s)
+{
+    if (s->pre)
+        ahead_end(s->pre, SL_OK, NULL);
+    s->pre = NULL;
 }
 
 int stream_feed_ahead(stream *s, int k0, int k1, add_fn add, void *h, const char *what,
                       sl_err *err, int *ran)
 {
-    ahead a = {.s = s, .k0 = k0, .k1 = k1, .added = k0, .bad_k = k1};
-    *ran = 0;
-    if (!(a.nslot = ring_slots(s, k0, k1)))
-        return SL_OK; /* no memory for a ring: read serially */
-    a.ring = s->ring;
-    if (!(a.slot_k = malloc(sizeof *a.slot_k * a.nslot)))
-        return SL_OK;
-    for (int i = 0; i < a.nslot; i++)
-        a.slot_k[i] = -1;
-    pthread_mutex_init(&a.mu, NULL);
-    pthread_cond_init(&a.free_cv, NULL);
-    pthread_cond_init(&a.ready_cv, NULL);
-    make_readers(&a);
-    int rc = SL_OK;
-    if (!start_readers(&a))
-        goto free_readers; /* no threads: the caller reads serially instead */
-    *ran = 1;
-    rc = ahead_consume(&a, add, h, what, err);
-    pthread_mutex_lock(&a.mu); /* readers past a refused frame may wait */
-    a.stop = 1;
-    pthread_cond_broadcast(&a.free_cv);
-    pthread_mutex_unlock(&a.mu);
-    for (int j = 0; j < a.nread; j++)
-        pthread_join(a.rdr[j].th, NULL);
-    if (rc == SL_OK && a.bad_k < k1)
-        rc = sl_seterr(err, a.bad_rc, "%s", cube_reader_errmsg(a.rdr[a.bad_j].rd));
-free_readers:
-    for (int j = 1; j < a.nread; j++) {
-        cube_reader_free(a.rdr[j].rd);
-        prep_free(a.rdr[j].pp);
+    ahead *a = s->pre;
+    s->pre = NULL;
+    if (a && (a->k0 != k0 || a->k1 != k1)) /* not this pass's: drop it */
+        ahead_end(a, SL_OK, NULL), a = NULL;
+    if (!a && !(a = ahead_start(s, k0, k1))) {
+        *ran = 0;
+        return SL_OK; /* no threads or ring: the caller reads serially */
     }
-    pthread_cond_destroy(&a.ready_cv);
-    pthread_cond_destroy(&a.free_cv);
-    pthread_mutex_destroy(&a.mu);
-    free(a.slot_k);
-    return rc;
+    *ran = 1;
+    return ahead_end(a, ahead_consume(a, add, h, what, err), err);
 }

@@ -59,6 +59,8 @@ typedef struct stream {
                              returns (0: a few); pipeline_ahead.c */
     float *ring;          /* the read-ahead ring, ring_slots frames */
     int ring_slots;
+    struct ahead *pre;    /* readers already reading the next pass
+                             (stream_prefetch), or NULL */
     int counts[PROBE_NVERDICT], counts_whole;
 } stream;
 
@@ -86,6 +88,14 @@ double stream_now_s(void);
  * when there was no thread or ring to be had: the caller reads serially. */
 int stream_feed_ahead(stream *s, int k0, int k1, add_fn add, void *h, const char *what,
                       sl_err *err, int *ran);
+/* Start reading the next pass over s's range on the readers now, while
+ * the caller plans its estimator (the plan is mostly serial: the readers
+ * fill the ring meanwhile, and the pass's first frames wait no more);
+ * the next stream_feed takes them over.  Nothing when s reads serially
+ * or through a probe.  stream_close (or stream_prefetch_cancel) stops
+ * readers no pass took. */
+void stream_prefetch(stream *s);
+void stream_prefetch_cancel(stream *s);
 /* Expect passes more feeds of every frame (for the progress estimate). */
 void stream_expect_passes(stream *s, int passes);
 

@@ -22,6 +22,7 @@
 
 void stream_close(stream *s)
 {
+    stream_prefetch_cancel(s); /* its readers use rd, pp and the ring */
     cube_reader_free(s->rd);
     prep_free(s->pp);
     free(s->frame);
@@ -329,8 +330,10 @@ double stream_now_s(void)
 /* The pass, its time split between reading (and cleaning) and add. */
 static int feed(stream *s, add_fn add, void *h, const char *what, sl_err *err)
 {
-    if (s->pb)
+    if (s->pb) {
+        stream_prefetch_cancel(s); /* none is made with a probe; never two readers of rd */
         return skip_feed(s, add, h, what, err);
+    }
     int ran = 0;
     if (s->ahead) {
         int rc = stream_feed_ahead(s, s->k0, s->k1, add, h, what, err, &ran);

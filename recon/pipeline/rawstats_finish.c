@@ -186,7 +186,8 @@ static int is_static(const rawstats *r, const float *M, const float *S,
     atomic_store(&j.next, 0);
     rawstats_run_bands(r, level_run, &j);
     /* none selected: the median is 0, static as before */
-    return stats_median_where(r->pool, scratch, NULL, 0, n) < 0.1f;
+    float m = stats_median_where(r->pool, scratch, NULL, 0, n);
+    return isnan(m) ? -1 : m < 0.1f; /* NaN: no memory for the histograms */
 }
 
 /* Stuck, hot and dead pixels (see rawstats.h).  A pixel's residual from
@@ -333,10 +334,8 @@ int rawstats_finish(rawstats *r, rawstats_result *out)
     float *mloc = malloc(n * sizeof *mloc);
     float *sloc = malloc(n * sizeof *sloc), *tmp = malloc(n * sizeof *tmp);
     int rc = SL_OK;
-    if (!M || !S || !mloc || !sloc || !tmp) {
-        rc = sl_seterr(&r->err, SL_ENOMEM, "rawstats: out of memory");
-        goto free_all;
-    }
+    if (!M || !S || !mloc || !sloc || !tmp)
+        goto no_memory;
     if (r->nframes > 0) {
         finish_job fj = {.r = r, .M = M, .S = S, .mloc = mloc, .sloc = sloc};
         for (fj.pass = 0; fj.pass < 2; fj.pass++) {
@@ -346,21 +345,21 @@ int rawstats_finish(rawstats *r, rawstats_result *out)
         double med = stats_median_where(r->pool, M, NULL, 0, n);
         double bg = stats_median_where(r->pool, M, M, med, n);      /* 25th percentile */
         double sigma_t = stats_median_where(r->pool, S, M, med, n);  /* dimmer half */
-        if (isnan(med) || isnan(bg) || isnan(sigma_t)) { /* M, S finite: no memory */
-            rc = sl_seterr(&r->err, SL_ENOMEM, "rawstats: out of memory");
-            goto free_all;
-        }
-        s->static_scene = is_static(r, M, S, bg, sigma_t, tmp);
+        /* M and S are finite: a NaN median means no memory */
+        if (isnan(med) || isnan(bg) || isnan(sigma_t) ||
+            (s->static_scene = is_static(r, M, S, bg, sigma_t, tmp)) < 0)
+            goto no_memory;
         mark_bad(r, M, S, mloc, sloc, bg, sigma_t);
         find_sky(r, M, S, bg, sigma_t, tmp);
-        if (find_cloud(r, M, sigma_t) != SL_OK) {
-            rc = sl_seterr(&r->err, SL_ENOMEM, "rawstats: out of memory");
-            goto free_all;
-        }
+        if (isnan(s->sky_rms) || find_cloud(r, M, sigma_t) != SL_OK)
+            goto no_memory;
     }
     r->finished = 1;
     if (out)
         *out = *s;
+    goto free_all;
+no_memory:
+    rc = sl_seterr(&r->err, SL_ENOMEM, "rawstats: out of memory");
 free_all:
     free(M);
     free(S);

@@ -2,6 +2,7 @@
  * invariance, photon-bias removal on Poisson frames, the support mask and
  * the reference-star transfer-function division. */
 #include <complex.h>
+#include <math.h>
 #include <fftw3.h>
 
 #include "spectra/powspec.h"
@@ -501,6 +502,66 @@ TEST(non_finite_frame_refused_by_pixel)
     }
 }
 
+/* The floor's region in powspec_support is every frequency with
+ * hypot(pf / (w/2), qf / (h/2)) > floor_rho, summed in pixel order: with
+ * nsigma and rel_min 0 the threshold is that region's mean exactly, so a
+ * pair of pixels a hair above it is kept and a pair a hair below is not.
+ * Odd and even sizes, circles through lattice points and not, one that
+ * leaves only the corners (rows with no frequency beyond), and none
+ * (floor_rho < 0: every frequency). */
+TEST(floor_region_is_the_per_frequency_test)
+{
+    static const int sz[][2] = {{64, 64}, {63, 50}, {128, 96}, {33, 33}};
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 5; r++) {
+            int w = sz[c][0], h = sz[c][1];
+            double rho0 = r == 0 ? 0.8 : r == 1 ? 0.95 : r == 2 ? -1 : r == 3 ? 1.2 /* corners */
+                        : hypot(11 / (0.5 * w), 7 / (0.5 * h)); /* through (11, 7) */
+            double *ps = malloc(sizeof *ps * w * h);
+            unsigned char *mask = malloc((size_t)w * h);
+            if (!ps || !mask) {
+                CHECK(0, "out of memory");
+                free(ps), free(mask);
+                return;
+            }
+            double sum = 0;
+            size_t m = 0;
+            for (int j = 0; j < h; j++)
+                for (int i = 0; i < w; i++) {
+                    int pf = i <= (w - 1) / 2 ? i : i - w, qf = j <= (h - 1) / 2 ? j : j - h;
+                    int in = rho0 < 0 || hypot(pf / (0.5 * w), qf / (0.5 * h)) > rho0;
+                    double v = in ? 1 + (i * 7 + j * 13) % 17 : 0;
+                    ps[(size_t)j * w + i] = v;
+                    sum += v, m += in;
+                }
+            double fm = sum / m;
+            /* probes, 4-neighbours in pairs, inside the circle (rows 2, 4) */
+            size_t up = 2 * (size_t)w + 1, down = 4 * (size_t)w + 1;
+            if (rho0 >= 0) {
+                ps[up] = ps[up + 1] = fm * (1 + 1e-9);
+                ps[down] = ps[down + 1] = fm * (1 - 1e-9);
+            }
+            CHECK(powspec_support(ps, w, h, 0, 0, rho0, 0, mask, NULL) == SL_OK, "support");
+            if (rho0 >= 0)
+                CHECK(mask[up] && mask[up + 1] && !mask[down] && !mask[down + 1],
+                      "%dx%d, rho0 %.6g: the threshold is not the region's mean %.17g "
+                      "(kept above %d %d, below %d %d)", w, h, rho0, fm, mask[up],
+                      mask[up + 1], mask[down], mask[down + 1]);
+            else /* every frequency the floor: only values above the mean kept */
+                for (int k = 1; k < w * h; k++) {
+                    int i = k % w, j = k / w;
+                    int nyq = (w % 2 == 0 && i == w / 2) || (h % 2 == 0 && j == h / 2);
+                    if (!nyq && ps[k] <= fm && mask[k]) {
+                        CHECK(0, "%dx%d, no circle: pixel %d (%g) kept at mean %g", w, h, k,
+                              ps[k], fm);
+                        break;
+                    }
+                }
+            free(ps), free(mask);
+        }
+}
+
 TC_MAIN(TC_CASE(sums_equal_on_any_thread_count), TC_CASE(non_finite_frame_refused_by_pixel), TC_CASE(single_frame_equals_fft), TC_CASE(shift_invariant), TC_CASE(gain_from_the_floor),
         TC_CASE(window_shapes), TC_CASE(photon_bias_removed),
-        TC_CASE(read_noise_bias_removed), TC_CASE(reference_division))
+        TC_CASE(read_noise_bias_removed), TC_CASE(reference_division),
+        TC_CASE(floor_region_is_the_per_frequency_test))

@@ -35,35 +35,26 @@
 #define FIT_DP 32
 #define FIT_NREAL 32
 
-/* hypot((double)p / w, (double)q / h) is within a few ulps of sqrt(d2)
- * with d2 the sum of the squares: where d2 is further than STF_MARGIN
- * (relative) from a threshold's square, d2 decides as hypot would, and
- * hypot is called only near it (a hypot per pixel in these passes was
- * ~5 ms of one thread at 512^2; the answers are the same). */
-#define STF_MARGIN 1e-9
-
-static double sq_cyc(int i, int j, int w, int h)
-{
-    double x = (double)(i <= w / 2 ? i : i - w) / w, y = (double)(j <= h / 2 ? j : j - h) / h;
-    return x * x + y * y;
-}
-
+/* The largest |(x, y)| of the support (stf.h: hypot only where the sum
+ * of squares reaches the largest so far). */
 static double cut_off_cyc(const unsigned char *support, int w, int h)
 {
     double rc = 0, d2max = 0;
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++)
             if (support[(size_t)j * w + i]) {
-                double d2 = sq_cyc(i, j, w, h);
+                double x, y;
+                stf_freq_cyc(i, j, w, h, &x, &y);
+                double d2 = x * x + y * y;
                 if (d2 < d2max * (1 - STF_MARGIN))
-                    continue; /* below the largest so far */
-                int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
-                rc = fmax(rc, hypot((double)p / w, (double)q / h));
+                    continue;
+                rc = fmax(rc, hypot(x, y));
                 d2max = fmax(d2max, d2);
             }
     return rc;
 }
 
+/* The support's share of the frequencies within 0.8 rc_cyc. */
 static double support_fill(const unsigned char *support, int w, int h,
                            double rc_cyc)
 {
@@ -71,11 +62,12 @@ static double support_fill(const unsigned char *support, int w, int h,
     double c = 0.8 * rc_cyc, c2 = c * c;
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
-            int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
-            double d2 = sq_cyc(i, j, w, h);
+            double x, y;
+            stf_freq_cyc(i, j, w, h, &x, &y);
+            double d2 = x * x + y * y;
             int inside = d2 < c2 * (1 - STF_MARGIN)   ? 1
                          : d2 > c2 * (1 + STF_MARGIN) ? 0
-                                                      : hypot((double)p / w, (double)q / h) <= c;
+                                                      : hypot(x, y) <= c;
             if (inside) {
                 all++;
                 in += support[(size_t)j * w + i] != 0;

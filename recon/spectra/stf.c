@@ -456,11 +456,11 @@ int stf_model_fit(stf_model *m, const double *eps, double *d_r0, double *rms)
     return SL_OK;
 }
 
-/* rho / rho_c of FFT-order pixel (i, j) on w x h, in bins of 1 / dp. */
-static double bin_pos(int i, int j, int w, int h, double rc_cyc, int nbins)
+/* rho / rho_c of the frequency (x, y) in cycles per pixel, in bins of
+ * 1 / dp. */
+static double bin_pos(double x, double y, double rc_cyc, int nbins)
 {
-    int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
-    return hypot((double)p / w, (double)q / h) / rc_cyc * (nbins - 1);
+    return hypot(x, y) / rc_cyc * (nbins - 1);
 }
 
 void stf_spectral_ratio(const double *ps, const double *le, int w, int h,
@@ -476,15 +476,13 @@ void stf_spectral_ratio(const double *ps, const double *le, int w, int h,
     double k = (nbins - 1) / rc_cyc;
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
-            /* sqrt of the squares is within a few ulps of bin_pos's
-             * hypot: the nearest bin is the same unless x lies within
-             * 1e-9 of a half-integer, where bin_pos decides (a hypot and
-             * an lround per pixel were ~3.5 ms of one thread at 512^2) */
-            int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
-            double xp = (double)p / w, yq = (double)q / h, x = sqrt(xp * xp + yq * yq) * k;
-            double fr = x - floor(x);
-            long b = fabs(fr - 0.5) < 1e-9 ? lround(bin_pos(i, j, w, h, rc_cyc, nbins))
-                                           : (long)floor(x + 0.5);
+            /* the nearest bin, by bin_pos only within STF_MARGIN of a
+             * half-integer (stf.h) */
+            double x, y;
+            stf_freq_cyc(i, j, w, h, &x, &y);
+            double pos = sqrt(x * x + y * y) * k, fr = pos - floor(pos);
+            long b = fabs(fr - 0.5) < STF_MARGIN ? lround(bin_pos(x, y, rc_cyc, nbins))
+                                                 : (long)floor(pos + 0.5);
             if (b < nbins) {
                 sp[b] += ps[(size_t)j * w + i];
                 sl[b] += le[(size_t)j * w + i];
@@ -502,13 +500,13 @@ void stf_modulus(const double *ps, int w, int h, double rc_cyc,
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
             size_t k = (size_t)j * w + i;
-            int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
-            double xp = (double)p / w, yq = (double)q / h;
-            if (xp * xp + yq * yq > rc_cyc * rc_cyc * (1 + 1e-9)) {
+            double fx, fy;
+            stf_freq_cyc(i, j, w, h, &fx, &fy);
+            if (fx * fx + fy * fy > rc_cyc * rc_cyc * (1 + STF_MARGIN)) {
                 mod[k] = 0; /* beyond the cut-off: bin_pos >= nbins - 1 */
                 continue;
             }
-            double x = bin_pos(i, j, w, h, rc_cyc, nbins);
+            double x = bin_pos(fx, fy, rc_cyc, nbins);
             int b = (int)x;
             if (b >= nbins - 1) {
                 mod[k] = 0;

@@ -4,6 +4,8 @@
  * corrected modulus against the object it was built from. */
 #include <complex.h>
 #include <stdlib.h>
+#include <string.h>
+#include <math.h>
 
 #include "spectra/powspec.h"
 #include "spectra/stf.h"
@@ -218,7 +220,74 @@ TEST(modulus_round_trip)
     CHECK(worst < 1e-9, "modulus off |O| T0 by %g", worst);
 }
 
+/* The data-side passes bin by hypot(p / w, q / h) / rc (nbins - 1) per
+ * pixel, as their definitions read: the spectral ratio to the nearest bin
+ * (lround), summed in pixel order, the modulus interpolated and 0 from
+ * the last bin on.  The code takes hypot only near a threshold; its
+ * results must be these to the bit.  Odd and even sizes, cut-offs through
+ * lattice points (bin edges on the pixels), just outside one, and not. */
+static double def_pos(int i, int j, int w, int h, double rc, int nb)
+{
+    int p = i <= w / 2 ? i : i - w, q = j <= h / 2 ? j : j - h;
+    return hypot((double)p / w, (double)q / h) / rc * (nb - 1);
+}
+
+TEST(data_passes_bin_as_hypot_per_pixel)
+{
+    static const int sz[][2] = {{16, 16}, {17, 30}, {64, 48}, {101, 100}};
+    unsigned seed = 7;
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 6; r++)
+            for (int nb = 8; nb <= 104; nb += 32) {
+                int w = sz[c][0], h = sz[c][1];
+                double rc = r < 3 ? 0.1 + 0.15 * r
+                                  : hypot((double)(r + 1) / w, (double)(2 * r - 3) / h);
+                if (r == 5)
+                    rc *= 1 + 1e-4; /* a pixel just inside the cut-off */
+                size_t n = (size_t)w * h;
+                double *ps = malloc(n * sizeof *ps), *le = malloc(n * sizeof *le);
+                double *m1 = malloc(n * sizeof *m1), *m2 = malloc(n * sizeof *m2);
+                double e1[104], e2[104], stf[104], t0[104], sp[104] = {0}, sl[104] = {0};
+                if (!ps || !le || !m1 || !m2) {
+                    CHECK(0, "out of memory");
+                    free(ps), free(le), free(m1), free(m2);
+                    return;
+                }
+                for (size_t i = 0; i < n; i++) {
+                    seed = seed * 1103515245u + 12345u, ps[i] = (seed >> 8) / 16777216.0;
+                    seed = seed * 1103515245u + 12345u, le[i] = (seed >> 8) / 16777216.0;
+                }
+                for (int b = 0; b < nb; b++)
+                    stf[b] = 0.5 + 0.01 * b, t0[b] = 1.0 - (double)b / nb, e1[b] = NAN;
+                for (int j = 0; j < h; j++)
+                    for (int i = 0; i < w; i++) {
+                        long b = lround(def_pos(i, j, w, h, rc, nb));
+                        if (b < nb)
+                            sp[b] += ps[(size_t)j * w + i], sl[b] += le[(size_t)j * w + i];
+                        double x = def_pos(i, j, w, h, rc, nb), f = x - (int)x;
+                        int k = (int)x;
+                        size_t q = (size_t)j * w + i;
+                        m1[q] = k >= nb - 1 ? 0
+                              : sqrt(ps[q] / ((1 - f) * stf[k] + f * stf[k + 1])) *
+                                    ((1 - f) * t0[k] + f * t0[k + 1]);
+                    }
+                for (int b = 0; b < nb; b++)
+                    if (sp[b] > 0)
+                        e1[b] = sl[b] / sp[b];
+                stf_spectral_ratio(ps, le, w, h, rc, nb, e2);
+                stf_modulus(ps, w, h, rc, stf, t0, nb, m2);
+                int same_e = 1;
+                for (int b = 0; b < nb; b++)
+                    same_e &= memcmp(&e1[b], &e2[b], sizeof e1[b]) == 0;
+                CHECK(same_e && memcmp(m1, m2, n * sizeof *m1) == 0,
+                      "%dx%d, rc %.9g, %d bins: ratio %s, modulus %s", w, h, rc, nb,
+                      same_e ? "same" : "differs",
+                      memcmp(m1, m2, n * sizeof *m1) ? "differs" : "same");
+                free(ps), free(le), free(m1), free(m2);
+            }
+}
+
 TC_MAIN(TC_CASE(no_turbulence_is_diffraction), TC_CASE(korff_asymptote),
         TC_CASE(fit_round_trip), TC_CASE(aligned_long_exposure),
         TC_CASE(modulus_round_trip), TC_CASE(threads_same_bits),
-        TC_CASE(threads_out_of_range))
+        TC_CASE(threads_out_of_range), TC_CASE(data_passes_bin_as_hypot_per_pixel))

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "base/rng.h"
+#include "base/tpool.h"
 #include "spectra/bispec.h"
 #include "spectra/phasor_int.h"
 #include "tcheck.h"
@@ -210,5 +211,70 @@ TEST(kth_largest_matches_sort)
         }
 }
 
+/* phasor_halfspec is its definition to the bit on any pool: every known
+ * half-plane frequency's mod tap exp(i (phi - 2 pi k.c)), the taper 1 up
+ * to (1 - taper_frac) r_max and a raised cosine to 0 at r_max + 1 (r_max
+ * the largest known hypot(p, q)), the p = 0 column's negative q
+ * mirrored.  The code takes hypot only where the taper can need it. */
+static void ref_halfspec(int nf, const int32_t *fp, const int32_t *fq, const double *phi,
+                         const unsigned char *known, const double *mod, double taper, int w,
+                         int h, double *cin)
+{
+    int wc = w / 2 + 1;
+    double rmax = 0;
+    for (int j = 0; j < nf; j++)
+        if (known[j])
+            rmax = fmax(rmax, hypot(fp[j], fq[j]));
+    double r0 = rmax * (1.0 - taper), r1 = rmax + 1.0;
+    memset(cin, 0, (size_t)h * wc * 2 * sizeof *cin);
+    for (int j = 0; j < nf; j++) {
+        if (!known[j])
+            continue;
+        int p = fp[j], q = fq[j];
+        double r = hypot(p, q);
+        double tap = r <= r0 ? 1.0 : 0.5 * (1.0 + cos(M_PI * (r - r0) / (r1 - r0)));
+        double ph = phi[j] - 2.0 * M_PI * ((double)p * (w / 2) / w + (double)q * (h / 2) / h);
+        double re = mod[j] * tap * cos(ph), im = mod[j] * tap * sin(ph);
+        size_t k = (size_t)((q + h) % h) * wc + (size_t)p;
+        cin[2 * k] = re, cin[2 * k + 1] = im;
+        if (p == 0 && q > 0) {
+            k = (size_t)(h - q) * wc;
+            cin[2 * k] = re, cin[2 * k + 1] = -im;
+        }
+    }
+}
+
+TEST(halfspec_is_its_definition_on_any_pool)
+{
+    enum { WD = 48, HT = 40, R = 17 };
+    int32_t fp[4 * R * R], fq[4 * R * R];
+    double phi[4 * R * R], mod[4 * R * R];
+    unsigned char known[4 * R * R];
+    int nf = 0;
+    rng r;
+    rng_init(&r, 11, 0);
+    for (int q = -R; q <= R; q++) /* the half plane within R, a few unknown */
+        for (int p = 0; p <= R; p++)
+            if ((p > 0 || q >= 0) && p * p + q * q <= R * R) {
+                fp[nf] = p, fq[nf] = q, phi[nf] = 6 * rng_uniform(&r) - 3;
+                mod[nf] = rng_uniform(&r), known[nf++] = rng_uniform(&r) > 0.1;
+            }
+    size_t nc = (size_t)HT * (WD / 2 + 1) * 2;
+    double *want = malloc(nc * sizeof *want), *got = malloc(nc * sizeof *got);
+    tpool *pool = tpool_new(3, NULL);
+    CHECK(want && got && pool, "out of memory");
+    for (int v = 0; want && got && pool && v < 3; v++) {
+        double taper = v == 0 ? 0 : v == 1 ? 0.2 : 1;
+        ref_halfspec(nf, fp, fq, phi, known, mod, taper, WD, HT, want);
+        for (int pl = 0; pl < 2; pl++) {
+            phasor_halfspec(pl ? pool : NULL, nf, fp, fq, phi, known, mod, taper, WD, HT, got);
+            CHECK(memcmp(want, got, nc * sizeof *got) == 0, "taper %g, %s: not the definition",
+                  taper, pl ? "pool of 3" : "no pool");
+        }
+    }
+    tpool_free(pool);
+    free(want), free(got);
+}
+
 TC_MAIN(TC_CASE(recursion_same_bits_any_threads), TC_CASE(refine_within_budget),
-        TC_CASE(kth_largest_matches_sort))
+        TC_CASE(kth_largest_matches_sort), TC_CASE(halfspec_is_its_definition_on_any_pool))

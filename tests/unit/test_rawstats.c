@@ -73,6 +73,12 @@ TEST(stuck_hot_and_dead_pixels_are_found_and_nothing_else)
     CHECK_NEAR(res.sky_rms, sqrt(1.5 * 1.5 + 1.0 / 12), 0.15);
     CHECK_NEAR(res.cx_px, 34, 0.5);
     CHECK_NEAR(res.cy_px, 26, 0.5);
+    /* the cloud: 1.5 x the radius holding 95 % of the flux above the
+     * cut (sky + 5 sigma_t / sqrt(K), ~1.3 adu).  The long exposure is a
+     * Gaussian of sigma sqrt(4^2 + 1.5^2) = 4.27 px, above the cut out to
+     * ~12.6 px (peak ~100 adu), which holds 98.7 % of its flux: 95 % of
+     * that lies within 4.27 sqrt(-2 ln 0.0623) = 10.06 px */
+    CHECK_NEAR(res.cloud_radius_px, 1.5 * 10.06, 1.0);
     const uint8_t *sky = rawstats_skymask(rs);
     CHECK(!sky[26 * W + 34] && !sky[26 * W + 38], "the cloud is in the sky mask");
     CHECK(res.nsky > W * H / 2, "only %d sky pixels", res.nsky);

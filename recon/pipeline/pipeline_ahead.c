@@ -232,7 +232,7 @@ static int ahead_end(ahead *a, int rc, sl_err *err);
  * to be had (the caller reads serially). */
 static ahead *ahead_start(stream *s, int k0, int k1)
 {
-    ahead *a = calloc(1, sizeof *a);
+    ahead *a = malloc(sizeof *a);
     if (!a)
         return NULL;
     *a = (ahead){.s = s, .k0 = k0, .k1 = k1, .added = k0, .bad_k = k1};

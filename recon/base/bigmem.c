@@ -5,6 +5,7 @@
 #include <stdint.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #define BIG_ALIGN ((uintptr_t)2 << 20)
 
@@ -25,9 +26,10 @@ void *bigmem_alloc(size_t bytes, int huge)
         munmap(m, a - (uintptr_t)m);
     if ((uintptr_t)m + len > end)
         munmap((void *)end, (uintptr_t)m + len - end);
-#ifdef MADV_HUGEPAGE
-    if (huge)
-        madvise((void *)a, span(bytes), MADV_HUGEPAGE); /* a hint */
+#if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
+    /* a hint either way; without huge, small pages even where THP is
+     * "always", so that touching in page-cut shares faults only the share */
+    madvise((void *)a, span(bytes), huge ? MADV_HUGEPAGE : MADV_NOHUGEPAGE);
 #else
     (void)huge;
 #endif
@@ -42,13 +44,19 @@ static void share(size_t bytes, int tid, int n, uintptr_t *b0, uintptr_t *b1)
     *b1 = pages * (uintptr_t)(tid + 1) / (uintptr_t)n * BIG_ALIGN;
 }
 
+/* Touching is cut at pages, not huge pages: a buffer under 2 MB (TSM's
+ * blocks at 200^2) would otherwise be one thread's whole share.  On a
+ * huge-page buffer the first toucher of each 2 MB faults it whole; the
+ * zeros are the same. */
 void bigmem_touch_share(void *p, size_t bytes, int tid, int n)
 {
     if (!p || n < 1 || tid < 0 || tid >= n)
         return;
-    uintptr_t b0, b1;
-    share(bytes, tid, n, &b0, &b1);
-    b1 = b1 < bytes ? b1 : bytes; /* the span's tail past bytes stays unmapped */
+    long pg = sysconf(_SC_PAGESIZE);
+    uintptr_t unit = pg > 0 ? (uintptr_t)pg : 4096, pages = (bytes + unit - 1) / unit;
+    uintptr_t b0 = pages * (uintptr_t)tid / (uintptr_t)n * unit;
+    uintptr_t b1 = pages * (uintptr_t)(tid + 1) / (uintptr_t)n * unit;
+    b1 = b1 < bytes ? b1 : bytes;
     if (b1 > b0)
         memset((char *)p + b0, 0, b1 - b0);
 }

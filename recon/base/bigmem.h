@@ -7,10 +7,11 @@
  * after finds nothing left to free.
  *
  * bigmem_alloc: zero-filled anonymous pages (never touched here: each is
- * faulted by whoever writes it first), 2 MB aligned; with huge > 0 also
- * asks for transparent huge pages (a hint).  NULL when out of memory.
+ * faulted by whoever writes it first), 2 MB aligned; with huge > 0 it
+ * asks for transparent huge pages, else for small ones (hints).  NULL
+ * when out of memory.
  * bigmem_touch_share: thread tid of n writes zeros over its share of the
- * buffer (cut at 2 MB boundaries), so that the pages' first-touch faults
+ * buffer (cut at page boundaries), so that the pages' first-touch faults
  * are taken on many threads, not later by one (the zero-fill's cost on
  * this VM: 0.5-0.9 GB/s per thread for pages fresh to the process).
  * bigmem_release_share: thread tid of n frees its share of the buffer's

@@ -87,13 +87,17 @@ static size_t resident(const void *p, size_t n, size_t *first)
 
 /* Touched one share at a time from the last, the resident pages are
  * exactly those from each share's start to the buffer's last byte: no
- * page before the share, none past the buffer in its 10 MB mapping; the
- * buffer reads as zeros. */
+ * page before the share, none past the buffer in its mapping; the
+ * buffer reads as zeros.  Shares are cut at pages: with 6 threads a
+ * 9 MB buffer's shares do not start at 2 MB boundaries, and a 1.5 MB one
+ * (under one huge page) is split too. */
 TEST(touched_shares_fault_their_pages_only)
 {
-    size_t n = 9 * MB + 4000, pg = (size_t)sysconf(_SC_PAGESIZE), span = 10 * MB;
-    size_t last = (n + pg - 1) / pg, huge = span / (2 * MB);
-    for (int nt = 1; nt <= 6; nt++) {
+    size_t pg = (size_t)sysconf(_SC_PAGESIZE);
+    for (int k = 0; k < 12; k++) {
+        int nt = 1 + k % 6;
+        size_t n = k < 6 ? 9 * MB + 4000 : 3 * MB / 2, last = (n + pg - 1) / pg;
+        size_t span = k < 6 ? 10 * MB : 2 * MB; /* the mapping */
         unsigned char *p = bigmem_alloc(n, 0);
         CHECK(p, "no buffer");
         if (!p)
@@ -102,7 +106,7 @@ TEST(touched_shares_fault_their_pages_only)
         CHECK(resident(p, span, &first) == 0, "%d threads: resident before", nt);
         for (int sh = nt - 1; sh >= 0; sh--) {
             bigmem_touch_share(p, n, sh, nt);
-            size_t start = huge * sh / nt * 2 * MB / pg, total = resident(p, span, &first);
+            size_t start = last * sh / nt, total = resident(p, span, &first);
             CHECK(total == last - start && first == start, "%d threads, share %d: %zu pages "
                   "resident from page %zu, not %zu from %zu", nt, sh, total, first,
                   last - start, start);

@@ -71,8 +71,38 @@ static void neighbour_sum(const tsm *t, int a, int nbr, float complex *out)
     }
 }
 
-/* What the modulus is divided by on the spatial path, at angle a, h[j]
- * for j < nf (1 on the Fourier path).  The bilinear rays sample the
+/* One job over the angles on t's pool: fn(t, a, arg) for every angle,
+ * claimed 8 at a time.  Each angle writes only its own rows, so the bits
+ * do not depend on the threads.  Why: the per-angle passes between the
+ * phases and the inverse (the modulus with its cos and sin, the
+ * neighbours' sums, the centring) were ~1-3 ms of one thread a run. */
+typedef void (*angle_fn)(tsm *t, int a, void *arg);
+
+typedef struct angle_job {
+    tsm *t;
+    angle_fn fn;
+    void *arg;
+    atomic_int next;
+} angle_job;
+
+static void angle_run(void *ctx, int tid, int n)
+{
+    angle_job *j = ctx;
+    (void)tid, (void)n;
+    for (int a0; (a0 = atomic_fetch_add(&j->next, 8)) < j->t->nang;)
+        for (int a = a0; a < a0 + 8 && a < j->t->nang; a++)
+            j->fn(j->t, a, j->arg);
+}
+
+static void each_angle(tsm *t, angle_fn fn, void *arg)
+{
+    angle_job j = {.t = t, .fn = fn, .arg = arg};
+    atomic_init(&j.next, 0);
+    tpool_run(t->pool, angle_run, &j);
+}
+
+/* What the modulus is divided by on the spatial path at frequency j of
+ * the angle whose cos and sin are co, si (1 on the Fourier path).  The bilinear rays sample the
  * image's bilinear interpolant (transfer sinc^2(u) sinc^2(v)) along a unit
  * lattice, so a slice is damped by H = sinc^2(rho cos) sinc^2(rho sin)
  * (down to 0.41 at rho = 1/2) plus aliases; the object's, a reference's
@@ -85,15 +115,14 @@ static void neighbour_sum(const tsm *t, int a, int nbr, float complex *out)
  * 0.935 / 0.978, all divided 0.953 / 0.978, up to j_K 0.951 / 0.980; 90
  * angles 0.897 / 0.909, 0.870 / 0.853, 0.899 / 0.904; 18 angles 0.626 /
  * 0.539, 0.531 / 0.461, 0.625 / 0.539. */
-static void signal_transfer(const tsm *t, int a, double *h)
+static double signal_transfer(const tsm *t, double co, double si, int j)
 {
-    double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
+    if (t->o.variant != TSM_SPATIAL)
+        return 1.0;
     double jk = t->nang / M_PI;
-    for (int j = 0; j < t->nf; j++) {
-        double r = M_PI * (j < jk ? j : jk) / t->ns, x = r * co, y = r * si;
-        double sx = fabs(x) > 1e-12 ? sin(x) / x : 1.0, sy = fabs(y) > 1e-12 ? sin(y) / y : 1.0;
-        h[j] = t->o.variant == TSM_SPATIAL ? sx * sx * sy * sy : 1.0;
-    }
+    double r = M_PI * (j < jk ? j : jk) / t->ns, x = r * co, y = r * si;
+    double sx = fabs(x) > 1e-12 ? sin(x) / x : 1.0, sy = fabs(y) > 1e-12 ? sin(y) / y : 1.0;
+    return sx * sx * sy * sy;
 }
 
 /* (3) The phases of every projection spectrum, from the raw bispectrum
@@ -129,48 +158,40 @@ static void result_phases(tsm *t, double sbar, double g, double lv)
 }
 
 /* (4) the modulus (calibrated by the reference when there is one,
- * undamped, apodised) with the phases: the projection spectra. */
-static void result_spectra(tsm *t)
+ * undamped, apodised) with the phases: angle a's projection spectrum. */
+static void spectrum_angle(tsm *t, int a, void *arg)
 {
+    (void)arg;
     int nf = t->nf, J = nf - 1;
-    tsm_power(t, t->psc);
-    for (int a = 0; a < t->nang; a++) {
-        const double *pc = t->psc + (size_t)a * nf, *rf = t->ref + (size_t)a * nf;
-        const double *tg = t->tgt + (size_t)a * nf;
-        double *undamp = t->pr;
-        signal_transfer(t, a, undamp);
-        for (int j = 0; j < nf; j++) {
-            double m2 = pc[j];
-            if (t->has_ref && pc[0] > 0)
-                m2 = pc[j] * rf[j] / (rf[j] * rf[j] + t->wiener) * fmax(tg[j], 0);
-            double m = m2 > 0 ? sqrt(m2) / undamp[j] : 0, x = (double)j / J;
-            if (t->o.apod == TSM_APOD_HANN)
-                m *= 0.5 * (1 + cos(M_PI * x));
-            else if (t->o.apod == TSM_APOD_COSINE)
-                m *= cos(M_PI_2 * x);
-            double phi = t->phase[(size_t)a * nf + j];
-            t->ospec[(size_t)a * nf + j] = CMPLXF((float)(m * cos(phi)), (float)(m * sin(phi)));
-        }
+    const double *pc = t->psc + (size_t)a * nf, *rf = t->ref + (size_t)a * nf;
+    const double *tg = t->tgt + (size_t)a * nf;
+    double th = radon_angle_rad(t->rad, a), co = cos(th), si = sin(th);
+    for (int j = 0; j < nf; j++) {
+        double m2 = pc[j];
+        if (t->has_ref && pc[0] > 0)
+            m2 = pc[j] * rf[j] / (rf[j] * rf[j] + t->wiener) * fmax(tg[j], 0);
+        double m = m2 > 0 ? sqrt(m2) / signal_transfer(t, co, si, j) : 0, x = (double)j / J;
+        if (t->o.apod == TSM_APOD_HANN)
+            m *= 0.5 * (1 + cos(M_PI * x));
+        else if (t->o.apod == TSM_APOD_COSINE)
+            m *= cos(M_PI_2 * x);
+        double phi = t->phase[(size_t)a * nf + j];
+        t->ospec[(size_t)a * nf + j] = CMPLXF((float)(m * cos(phi)), (float)(m * sin(phi)));
     }
 }
 
-typedef struct centre_job {
-    tsm *t;
-    double cfrac;
-    atomic_int next;
-} centre_job;
-
-/* tpool job: each angle claimed shifted to its projection's centroid
- * (an angle's row is its own: the same bits on any thread). */
-static void centre_run(void *ctx, int tid, int n)
+/* Angle a shifted to its projection's centroid (of the part above
+ * *(double *)cfrac of its peak). */
+static void centre_angle(tsm *t, int a, void *cfrac)
 {
-    centre_job *j = ctx;
-    tsm *t = j->t;
-    (void)tid, (void)n;
-    for (int a0; (a0 = atomic_fetch_add(&j->next, 8)) < t->nang;)
-        for (int a = a0; a < a0 + 8 && a < t->nang; a++)
-            tsm_phase_shift(t->ospec + (size_t)a * t->nf, t->nf, t->ns,
-                            tsm_phase_centroid(t->proj + (size_t)a * t->ns, t->ns, j->cfrac));
+    tsm_phase_shift(t->ospec + (size_t)a * t->nf, t->nf, t->ns,
+                    tsm_phase_centroid(t->proj + (size_t)a * t->ns, t->ns, *(double *)cfrac));
+}
+
+/* Angle a's neighbours within *(int *)nbr each side, summed into sref. */
+static void neighbours_angle(tsm *t, int a, void *nbr)
+{
+    neighbour_sum(t, a, *(int *)nbr, t->sref + (size_t)a * t->nf);
 }
 
 /* (5) centre each projection on its centroid: twice, the second pass
@@ -181,20 +202,17 @@ static void centre_run(void *ctx, int tid, int n)
  * the last two ran (the object may have moved as a whole). */
 static int result_align(tsm *t, float *img, double cfrac, int *moved)
 {
-    int nf = t->nf, ns = t->ns, st;
+    int ns = t->ns, st;
     for (int pass = 0; pass < 2; pass++) {
         if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
             return st;
-        centre_job cj = {.t = t, .cfrac = cfrac};
-        atomic_init(&cj.next, 0);
-        tpool_run(t->pool, centre_run, &cj);
+        each_angle(t, centre_angle, &cfrac);
     }
     double adeg = t->o.align_deg > 0 ? t->o.align_deg : t->o.align_deg < 0 ? 0.0 : 8.0;
     int nbr = (int)floor(adeg * t->nang / 180.0 + 1e-9);
     nbr = nbr > t->nang / 4 ? t->nang / 4 : nbr;
     for (int it = 0; nbr > 0 && it < 3; it++) {
-        for (int a = 0; a < t->nang; a++)
-            neighbour_sum(t, a, nbr, t->sref + (size_t)a * nf);
+        each_angle(t, neighbours_angle, &nbr);
         tsm_phase_align_all(t->ph, t->ospec, t->sref, ns, 3.0, NULL);
     }
     int riters = t->o.reproj_iters < 0 ? 0 : t->o.reproj_iters ? t->o.reproj_iters : 3;
@@ -207,12 +225,21 @@ static int result_align(tsm *t, float *img, double cfrac, int *moved)
     return SL_OK;
 }
 
+/* Angle a's projection moved by the 2-D shift cxy[0..1] (its part along
+ * the angle). */
+static void shift_angle(tsm *t, int a, void *cxy)
+{
+    const double *c = cxy;
+    double th = radon_angle_rad(t->rad, a);
+    tsm_phase_shift(t->ospec + (size_t)a * t->nf, t->nf, t->ns, c[0] * cos(th) + c[1] * sin(th));
+}
+
 /* Put the object's centroid back at the centre with one 2-D shift, the
  * least-squares fit cx cos + cy sin of the per-angle centroids
  * (consistent across angles by construction). */
 static int result_recentre(tsm *t, double cfrac)
 {
-    int nf = t->nf, ns = t->ns, st;
+    int ns = t->ns, st;
     if ((st = radon_spec_to_proj(t->rad, t->ospec, t->proj)) != SL_OK)
         return st;
     double sxx = 0, sxy = 0, syy = 0, bx = 0, by = 0;
@@ -224,11 +251,8 @@ static int result_recentre(tsm *t, double cfrac)
     double det = sxx * syy - sxy * sxy;
     if (!(det > 1e-9 * (sxx + syy) * (sxx + syy)))
         return SL_OK;
-    double cx = (syy * bx - sxy * by) / det, cy = (sxx * by - sxy * bx) / det;
-    for (int a = 0; a < t->nang; a++) {
-        double th = radon_angle_rad(t->rad, a);
-        tsm_phase_shift(t->ospec + (size_t)a * nf, nf, ns, cx * cos(th) + cy * sin(th));
-    }
+    double cxy[2] = {(syy * bx - sxy * by) / det, (sxx * by - sxy * bx) / det};
+    each_angle(t, shift_angle, cxy);
     return SL_OK;
 }
 
@@ -254,7 +278,8 @@ int tsm_result(tsm *t, float *img)
     double sbar, g, lv;
     tsm_bias_terms(t, &sbar, &g, &lv);
     result_phases(t, sbar, g, lv);
-    result_spectra(t);
+    tsm_power(t, t->psc);
+    each_angle(t, spectrum_angle, NULL);
     double cfrac = t->o.centroid_frac > 0 ? t->o.centroid_frac
                  : t->o.centroid_frac < 0 ? 0.0 : 0.05;
     int moved = 0, st;

@@ -1,4 +1,7 @@
 /* test_prep.c - pre-processing: dark, flat, sky, bad pixels, window. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "io/cube.h"
@@ -189,6 +192,105 @@ TEST(real_frames_clean_to_zero_background)
     CHECK(k == 12, "frame %d: sky, flux or cleaned border median wrong", k);
 }
 
+/* ---- the sky's clipped mean and the recentring, against their
+ * definitions summed pixel by pixel (prep.c sums on 4 chains and cuts
+ * each row of the disc at its ends) ---------------------------------- */
+
+#define DCX 9.3
+#define DCY 21.6
+#define DR 12.35
+
+static double rim(int x, int y) /* d^2 - r^2: < 0 inside the disc */
+{
+    return (x - DCX) * (x - DCX) + (y - DCY) * (y - DCY) - DR * DR;
+}
+
+/* The clipped mean as defined: three passes, 4 rms about the last mean. */
+static double ref_sky(const float *f, const uint8_t *sky)
+{
+    double mean = 0, rms = INFINITY;
+    for (int pass = 0; pass < 3; pass++) {
+        double s1 = 0, s2 = 0, c = 0;
+        for (int i = 0; i < W * H; i++)
+            if (sky[i] && isfinite(f[i]) && fabs(f[i] - mean) <= 4 * rms)
+                s1 += f[i], s2 += (double)f[i] * f[i], c++;
+        mean = s1 / c;
+        rms = sqrt(fmax(s2 / c - mean * mean, 0)) + 1e-30;
+    }
+    return (float)mean;
+}
+
+/* The shift recentring makes, from the positive pixels of the disc of g
+ * (the frame less its sky) but pixel `skip`, and pixel `also`, as
+ * prep.h defines it. */
+static int ref_shift_x(const float *g, int skip, int also)
+{
+    double s = 0, sx = 0, sy = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (y * W + x != skip && g[y * W + x] > 0 && (rim(x, y) <= 0 || y * W + x == also))
+                s += g[y * W + x], sx += g[y * W + x] * x, sy += g[y * W + x] * y;
+    double tol = fmax(3, DR / 10), cx = DCX, cy = DCY;
+    if (hypot(sx / s - cx, sy / s - cy) > tol)
+        cx = sx / s, cy = sy / s;
+    int dx = ((W / 2 - (int)lround(cx)) % W + W) % W;
+    return dx > W / 2 ? dx - W : dx;
+}
+
+/* A sky of 1 + 4k pixels with two NaNs and a 1e6 outlier; a disc cut by
+ * the frame's left edge, with a bright pixel at the end of one row just
+ * inside the rim (A, above the centre) and one just outside (B, below):
+ * an end off by one either way moves the shift. */
+TEST(sky_and_centroid_follow_their_definitions)
+{
+    float f[W * H], g[W * H];
+    uint8_t sky[W * H];
+    int nsky = 0, a = -1, b = -1;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            int i = y * W + x;
+            sky[i] = rim(x, y) > 40 && i % 3 != 0;
+            nsky += sky[i];
+            f[i] = (float)(20 + ((i * 13) % 7) * 0.37 + (rim(x, y) <= 0 ? 5 : 0));
+            if (x > 0 && rim(x, y) <= 0 && y < DCY && (a < 0 || rim(x, y) > rim(a % W, a / W)))
+                a = i;
+            if (rim(x, y) > 0 && y > DCY && (b < 0 || rim(x, y) < rim(b % W, b / W)))
+                b = i;
+        }
+    if (nsky % 4 != 1)   /* a count past a multiple of 4 */
+        for (int i = 0; i < W * H && nsky % 4 != 1; i += 3)
+            if (rim(i % W, i / W) > 40)
+                sky[i] = 1, nsky++;
+    int sk[3], k = 0;
+    for (int i = W * H - 1; i >= 0 && k < 3; i--)
+        if (sky[i])
+            sk[k++] = i;
+    f[sk[0]] = NAN, f[sk[1]] = NAN, f[sk[2]] = 1e6f;
+    f[a] += 5000, f[b] += 5000;
+    prep_opts o;
+    prep_opts_defaults(&o);
+    o.window = PREP_WIN_NONE;
+    prep *p = NULL;
+    sl_err e;
+    CHECK(prep_new(&p, W, H, &o, &e) == SL_OK, "%s", e.msg);
+    CHECK(prep_set_sky(p, sky) == SL_OK && prep_set_centre(p, DCX, DCY, DR) == SL_OK, "set");
+    float sky_want = (float)ref_sky(f, sky);
+    for (int i = 0; i < W * H; i++)
+        g[i] = f[i] - sky_want;
+    int want = ref_shift_x(g, -1, -1), no_a = ref_shift_x(g, a, -1), with_b = ref_shift_x(g, -1, b);
+    prep_stats st;
+    CHECK(prep_frame(p, f, &st) == SL_OK, "%s", prep_errmsg(p));
+    CHECK_NEAR(st.sky, sky_want, 1e-6 * sky_want);
+    CHECK(want != no_a && want != with_b, "the test cannot see A or B (shifts %d, %d, %d)",
+          want, no_a, with_b);
+    CHECK(st.shift_x == want, "shift %d, defined %d (%d without A, %d with B)", st.shift_x,
+          want, no_a, with_b);
+    printf("    sky %.6f (%d pixels), shift %d (%d without A, %d with B)\n", st.sky, nsky,
+           st.shift_x, no_a, with_b);
+    prep_free(p);
+}
+
 TC_MAIN(TC_CASE(dark_flat_and_sky_are_removed), TC_CASE(hot_dead_nan_and_saturated_pixels_are_repaired),
         TC_CASE(windows_taper_the_edges), TC_CASE(choices_are_recorded_and_bad_options_named),
-        TC_CASE(real_frames_clean_to_zero_background))
+        TC_CASE(real_frames_clean_to_zero_background),
+        TC_CASE(sky_and_centroid_follow_their_definitions))

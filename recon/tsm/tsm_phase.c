@@ -40,6 +40,7 @@
  * (phase_ws), for the inputs, the solve and the alignment alike.
  */
 #include "tsm.h"
+#include "tsm_chol.h"
 
 #include <math.h>
 #include <stdatomic.h>
@@ -118,8 +119,6 @@ const int *tsm_phase_rowlen(const tsm_phase *p) { return p->len; }
 float *tsm_phase_phasors(tsm_phase *p) { return p->ph; }
 float *tsm_phase_weights(tsm_phase *p) { return p->wt; }
 
-static size_t packed(int n) { return (size_t)n * (n + 1) / 2; }
-
 tsm_phase *tsm_phase_new(int nangles, int nfreq, int r2, sl_err *err)
 {
     if (nangles < 1 || nfreq < 3 || r2 < 0) {
@@ -171,7 +170,7 @@ fail_free:
 static int ws_alloc(const tsm_phase *p, phase_ws *w)
 {
     size_t nf = (size_t)p->nf;
-    w->L = malloc(packed(p->n) * sizeof *w->L);
+    w->L = malloc(tsm_chol_packed(p->n) * sizeof *w->L);
     w->er = malloc(nf * sizeof *w->er);
     w->ei = malloc(nf * sizeof *w->ei);
     w->x = malloc(nf * sizeof *w->x);
@@ -321,120 +320,6 @@ static void inputs_angle(const inputs_job *j, phase_ws *ws, int a)
     }
 }
 
-/* ---- dense Cholesky on a packed lower triangle --------------------------
- * Row i holds L(i, 0..i) at i(i+1)/2: rows are contiguous, so the inner
- * loops are dot products of row prefixes, summed on 4 chains (3x faster
- * than one: the adds no longer wait on each other), four rows at a time
- * where four rows need the same prefix (below). */
-
-static inline double dot4(const double *restrict a, const double *restrict b, int n)
-{
-    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-    int k = 0;
-    for (; k + 4 <= n; k += 4)
-        s0 += a[k] * b[k], s1 += a[k + 1] * b[k + 1], s2 += a[k + 2] * b[k + 2],
-        s3 += a[k + 3] * b[k + 3];
-    for (; k < n; k++)
-        s0 += a[k] * b[k];
-    return (s0 + s1) + (s2 + s3);
-}
-
-/* dot4 for four rows at once, each summed exactly as dot4 sums it: lanes
- * 0-1 of row r's lo and hi vectors are dot4's chains s0-s1 and s2-s3 over
- * k < n4 (a multiple of 4: dot4's main loop); chains_close then adds
- * dot4's tail to s0 and joins the chains as it does.  16 chains run
- * instead of 4 and b's elements are loaded once for four rows: the same
- * bits, ~2x faster (the factor and the solves were ~40 % of a TSM solve,
- * bound by the chains' latency, not the arithmetic).  Two-double vectors:
- * SSE2 on every x86-64, plain pairs elsewhere. */
-typedef double v2d __attribute__((vector_size(16)));
-
-static inline v2d load2(const double *p)
-{
-    v2d v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-
-static inline void chains4(const double *const a[4], const double *b, int n4, v2d lo[4],
-                           v2d hi[4])
-{
-    for (int r = 0; r < 4; r++)
-        lo[r] = hi[r] = (v2d){0, 0};
-    for (int k = 0; k < n4; k += 4) {
-        v2d b0 = load2(b + k), b1 = load2(b + k + 2);
-        lo[0] += load2(a[0] + k) * b0, hi[0] += load2(a[0] + k + 2) * b1;
-        lo[1] += load2(a[1] + k) * b0, hi[1] += load2(a[1] + k + 2) * b1;
-        lo[2] += load2(a[2] + k) * b0, hi[2] += load2(a[2] + k + 2) * b1;
-        lo[3] += load2(a[3] + k) * b0, hi[3] += load2(a[3] + k + 2) * b1;
-    }
-}
-
-static inline double chains_close(v2d lo, v2d hi, const double *a, const double *b, int k0,
-                                  int n)
-{
-    double s0 = lo[0];
-    for (int k = k0; k < n; k++)
-        s0 += a[k] * b[k];
-    return (s0 + lo[1]) + (hi[0] + hi[1]);
-}
-
-/* Rows below j take column j four at a time. */
-static void cholesky(double *L, int n)
-{
-    for (int j = 0; j < n; j++) {
-        double *rj = L + packed(j);
-        double s = sqrt(fmax(rj[j] - dot4(rj, rj, j), 1e-300)), inv = 1 / s;
-        rj[j] = s;
-        int i = j + 1, n4 = j - j % 4;
-        for (; i + 4 <= n; i += 4) {
-            double *r4[4] = {L + packed(i), L + packed(i + 1), L + packed(i + 2),
-                             L + packed(i + 3)};
-            v2d lo[4], hi[4];
-            chains4((const double *const *)r4, rj, n4, lo, hi);
-            for (int r = 0; r < 4; r++)
-                r4[r][j] = (r4[r][j] - chains_close(lo[r], hi[r], r4[r], rj, n4, j)) * inv;
-        }
-        for (; i < n; i++) {
-            double *ri = L + packed(i);
-            ri[j] = (ri[j] - dot4(ri, rj, j)) * inv;
-        }
-    }
-}
-
-/* L L^T x = b in place.  Forward: rows i..i+3 from i = 0 mod 4 share
- * dot4's main loop over k < i, each then adds its tail (k = i.., the b
- * just solved) to s0 as dot4 would.  Backward: b -= v row i, by pairs
- * (each element's one multiply and subtract, as before). */
-static void chol_solve(const double *L, int n, double *b)
-{
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-        const double *r4[4] = {L + packed(i), L + packed(i + 1), L + packed(i + 2),
-                               L + packed(i + 3)};
-        v2d lo[4], hi[4];
-        chains4(r4, b, i, lo, hi);
-        for (int t = 0; t < 4; t++)
-            b[i + t] = (b[i + t] - chains_close(lo[t], hi[t], r4[t], b, i, i + t)) /
-                       r4[t][i + t];
-    }
-    for (; i < n; i++)
-        b[i] = (b[i] - dot4(L + packed(i), b, i)) / L[packed(i) + i];
-    for (i = n - 1; i >= 0; i--) {
-        const double *ri = L + packed(i);
-        double v = b[i] / ri[i];
-        v2d vv = {v, v};
-        b[i] = v;
-        int k = 0;
-        for (; k + 2 <= i; k += 2) {
-            v2d bk = load2(b + k) - load2(ri + k) * vv;
-            memcpy(b + k, &bk, sizeof bk);
-        }
-        for (; k < i; k++)
-            b[k] -= ri[k] * v;
-    }
-}
-
 /* ---- one angle ---------------------------------------------------------- */
 
 /* Recursion: phi(u) = arg sum over u1 + u2 = u of w E(u1) E(u2) conj(b),
@@ -464,7 +349,7 @@ static void closure_factor(const tsm_phase *p, phase_ws *ws, const float *wt)
 {
     int n = p->n;
     double *L = ws->L, tr = 0;
-    memset(L, 0, packed(n) * sizeof *L);
+    memset(L, 0, tsm_chol_packed(n) * sizeof *L);
     for (int q = 0; q < p->np; q++) {
         double w = wt[q];
         if (!(w > 0))
@@ -472,19 +357,19 @@ static void closure_factor(const tsm_phase *p, phase_ws *ws, const float *wt)
         int i1 = p->pu1[q] - 2, i2 = p->pu2[q] - 2, i3 = p->pu1[q] + p->pu2[q] - 2;
         /* a = -1, -1, +1 on u1, u2, u3 (i2 <= i1 < i3; phi(1) is fixed,
          * so i = -1 drops out; u1 = u2 puts 4w on the diagonal) */
-        L[packed(i3) + i3] += w;
+        L[tsm_chol_packed(i3) + i3] += w;
         if (i1 >= 0)
-            L[packed(i1) + i1] += w, L[packed(i3) + i1] -= w;
+            L[tsm_chol_packed(i1) + i1] += w, L[tsm_chol_packed(i3) + i1] -= w;
         if (i2 >= 0)
-            L[packed(i2) + i2] += w, L[packed(i3) + i2] -= w,
-            L[packed(i1) + i2] += i1 == i2 ? 2 * w : w;
+            L[tsm_chol_packed(i2) + i2] += w, L[tsm_chol_packed(i3) + i2] -= w,
+            L[tsm_chol_packed(i1) + i2] += i1 == i2 ? 2 * w : w;
     }
     for (int i = 0; i < n; i++)
-        tr += L[packed(i) + i];
+        tr += L[tsm_chol_packed(i) + i];
     /* a frequency no pair reaches has a zero row: the ridge keeps it put */
     for (int i = 0; i < n; i++)
-        L[packed(i) + i] += 1e-9 * tr / n + 1e-300;
-    cholesky(L, n);
+        L[tsm_chol_packed(i) + i] += 1e-9 * tr / n + 1e-300;
+    tsm_chol_factor(L, n);
 }
 
 /* Gradient of f at phases y into g (g[u] for u >= 2 meaningful). */
@@ -539,7 +424,7 @@ static void solve_angle(const tsm_phase *p, phase_ws *ws, int a, int iters, doub
     for (int it = 0; it < iters; it++) {
         gradient(p, ws, ph, wt, y, g);
         memcpy(ws->g0, g, nf * sizeof *g);
-        chol_solve(ws->L, n, g + 2);
+        tsm_chol_solve(ws->L, n, g + 2);
         /* x+ = y - d; momentum (t - 1)/t+ unless it points uphill, i.e.
          * grad f(y).(x+ - x) > 0 (O'Donoghue-Candes gradient restart) */
         double tn = 0.5 * (1 + sqrt(1 + 4 * t * t)), m = (t - 1) / tn, up = 0;

@@ -372,6 +372,34 @@ static void closure_factor(const tsm_phase *p, phase_ws *ws, const float *wt)
     tsm_chol_factor(L, n);
 }
 
+/* Two pairs at once (u2, u2 + 1 < u1) of row u1, as the plain loop does
+ * them one after the other: the same products, each g element's adds in
+ * the same order (g1 takes lane 0 then lane 1).  A pair of zero weight
+ * adds +0, which changes no element: g starts at +0 and a sum of +0 with
+ * anything never gives -0. */
+typedef double v2d __attribute__((vector_size(16)));
+typedef long long v2i __attribute__((vector_size(16)));
+
+static inline double gradient_pair2(const double *er, const double *ei, const float *ph,
+                                    const float *wt, int u1, int u2, int q, double g1,
+                                    double *g)
+{
+    double e1r = er[u1], e1i = ei[u1];
+    v2d x2r, x2i, x3r, x3i, w = {wt[q], wt[q + 1]}, gv;
+    memcpy(&x2r, er + u2, sizeof x2r), memcpy(&x2i, ei + u2, sizeof x2i);
+    memcpy(&x3r, er + u1 + u2, sizeof x3r), memcpy(&x3i, ei + u1 + u2, sizeof x3i);
+    v2d br = {ph[2 * q], ph[2 * q + 2]}, bi = {ph[2 * q + 1], ph[2 * q + 3]};
+    v2d tr = e1r * x2r - e1i * x2i, ti = e1r * x2i + e1i * x2r;
+    v2d cr = br * tr + bi * ti, ci = bi * tr - br * ti;
+    v2d sv = w * (cr * x3i + ci * x3r);
+    sv = (v2d)((v2i)sv & (v2i)(w > 0));
+    g1 -= sv[0];
+    g1 -= sv[1];
+    memcpy(&gv, g + u2, sizeof gv), gv -= sv, memcpy(g + u2, &gv, sizeof gv);
+    memcpy(&gv, g + u1 + u2, sizeof gv), gv += sv, memcpy(g + u1 + u2, &gv, sizeof gv);
+    return g1;
+}
+
 /* Gradient of f at phases y into g (g[u] for u >= 2 meaningful). */
 static void gradient(const tsm_phase *p, phase_ws *ws, const float *ph, const float *wt,
                      const double *y, double *g)
@@ -385,10 +413,14 @@ static void gradient(const tsm_phase *p, phase_ws *ws, const float *ph, const fl
      * pair of the row touches g[u1] (u2 < u1 but for u2 = u1, u3 > u1), so
      * these are the operations of one pass over q, in its order, without
      * a store-to-load chain through g[u1] from pair to pair (which had
-     * made this loop half of a TSM solve). */
+     * made this loop half of a TSM solve); two pairs at a time while
+     * both have u2 < u1. */
     for (int u1 = 1; u1 < nf - 1; u1++) {
         double e1r = er[u1], e1i = ei[u1], g1 = g[u1];
-        for (int u2 = 1, q = p->off[u1]; u2 <= p->len[u1]; u2++, q++) {
+        int u2 = 1, q = p->off[u1], n = p->len[u1], n2 = n < u1 - 1 ? n : u1 - 1;
+        for (; u2 + 1 <= n2; u2 += 2, q += 2)
+            g1 = gradient_pair2(er, ei, ph, wt, u1, u2, q, g1, g);
+        for (; u2 <= n; u2++, q++) {
             double w = wt[q];
             if (!(w > 0))
                 continue;

@@ -71,28 +71,6 @@ static double gcd_d(double a, double b)
     return a;
 }
 
-/* Rows [y0, y1)'s maximum, the pixels at it, and whether two 4-adjacent
- * pixels share it (the pixel below may lie past y1: it is read only). */
-static void band_peak(const rawstats *r, const float *f, int y0, int y1, float *vmax,
-                      long *nat, int *flat)
-{
-    int w = r->w, h = r->h;
-    float m = -INFINITY;
-    for (size_t i = (size_t)y0 * w, n = (size_t)y1 * w; i < n; i++)
-        if (f[i] > m)
-            m = f[i];
-    long c = 0;
-    int fl = 0;
-    for (int y = y0; y < y1; y++)
-        for (int x = 0; x < w; x++) {
-            size_t i = (size_t)y * w + x;
-            if (f[i] != m)
-                continue;
-            c++;
-            fl |= (x + 1 < w && f[i + 1] == m) || (y + 1 < h && f[i + w] == m);
-        }
-    *vmax = m, *nat = c, *flat = fl;
-}
 
 /* 1 when v is an integer; exact for |v| < 2^31, and larger floats are
  * integers anyway. */
@@ -120,6 +98,82 @@ static inline v4i v4_nonint(v4f v)
     v4i small = a < big;
     v4f c = (v4f)((small & (v4i)a) | (~small & (v4i)big));
     return (v4i)(__builtin_convertvector(__builtin_convertvector(c, v4i), v4f) != c);
+}
+
+/* Floats of f[i0, i1) that are not finite (exponent bits all ones). */
+static size_t count_nonfinite(const float *f, size_t i0, size_t i1)
+{
+    const v4i exp = {0x7f800000, 0x7f800000, 0x7f800000, 0x7f800000};
+    v4i acc = {0, 0, 0, 0};
+    size_t i = i0;
+    for (; i + 4 <= i1; i += 4) {
+        v4i v;
+        memcpy(&v, f + i, sizeof v);
+        acc -= (v & exp) == exp;   /* true is -1 */
+    }
+    size_t bad = (size_t)acc[0] + (size_t)acc[1] + (size_t)acc[2] + (size_t)acc[3];
+    for (; i < i1; i++)
+        bad += !isfinite(f[i]);
+    return bad;
+}
+
+/* The largest value of f[i0, i1) as the scan "if (f[i] > m) m = f[i]"
+ * finds it: four lanes, then the lanes' largest; NaN never wins either
+ * way.  Only a maximum of zero can differ (which zero came first): that
+ * one scan is redone. */
+static float band_max(const float *f, size_t i0, size_t i1)
+{
+    v4f mv = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    size_t i = i0;
+    for (; i + 4 <= i1; i += 4) {
+        v4f v;
+        memcpy(&v, f + i, sizeof v);
+        v4i gt = v > mv;
+        mv = (v4f)((gt & (v4i)v) | (~gt & (v4i)mv));
+    }
+    float m = -INFINITY;
+    for (int l = 0; l < 4; l++)
+        m = mv[l] > m ? mv[l] : m;
+    for (; i < i1; i++)
+        m = f[i] > m ? f[i] : m;
+    if (m == 0)
+        for (m = -INFINITY, i = i0; i < i1; i++)
+            m = f[i] > m ? f[i] : m;
+    return m;
+}
+
+/* Rows [y0, y1)'s maximum, the pixels at it, and whether two 4-adjacent
+ * pixels share it (the pixel below may lie past y1: it is read only).
+ * Four pixels a test, each group of four at x = 0 mod 4 skipped whole
+ * when none is at the maximum: the two scalar passes were 40 % of the
+ * learning's time a frame.  The same answers. */
+static void band_peak(const rawstats *r, const float *f, int y0, int y1, float *vmax,
+                      long *nat, int *flat)
+{
+    int w = r->w, h = r->h;
+    float m = band_max(f, (size_t)y0 * w, (size_t)y1 * w);
+    const v4f mm = {m, m, m, m};
+    long c = 0;
+    int fl = 0;
+    for (int y = y0; y < y1; y++) {
+        const float *row = f + (size_t)y * w;
+        for (int x = 0; x < w; x++) {
+            if (x + 4 <= w && x % 4 == 0) {
+                v4f v;
+                memcpy(&v, row + x, sizeof v);
+                v4i eq = v == mm;
+                if (!(eq[0] | eq[1] | eq[2] | eq[3])) {
+                    x += 3;
+                    continue;
+                }
+            }
+            if (row[x] != m)
+                continue;
+            c++;
+            fl |= (x + 1 < w && row[x + 1] == m) || (y + 1 < h && row[x + w] == m);
+        }
+    }
+    *vmax = m, *nat = c, *flat = fl;
 }
 
 static int add_finite(rawstats *r, const float *f, size_t i0, size_t i1)
@@ -207,11 +261,10 @@ static void add_run(void *ctx, int tid, int nthr)
     (void)tid, (void)nthr;
     for (int b; (b = atomic_fetch_add(&j->next, 1)) < RS_BANDS;) {
         int y0 = band_row(r->h, b), y1 = band_row(r->h, b + 1);
-        size_t i0 = (size_t)y0 * r->w, i1 = (size_t)y1 * r->w, bad = 0;
+        size_t i0 = (size_t)y0 * r->w, i1 = (size_t)y1 * r->w;
         if (r->nfull == 0) /* see first_touch */
             first_touch(r, i0, i1);
-        for (size_t i = i0; i < i1; i++)
-            bad += !isfinite(j->f[i]);
+        size_t bad = count_nonfinite(j->f, i0, i1);
         j->nonint[b] = bad ? add_partial(r, j->f, i0, i1) : add_finite(r, j->f, i0, i1);
         band_peak(r, j->f, y0, y1, &j->peak[b], &j->nat[b], &j->flat[b]);
     }

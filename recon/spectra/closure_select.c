@@ -82,6 +82,7 @@ static void keep_job(void *ctx, int tid, int nthr)
     keep_ctx *c = ctx;
     const phasor_graph *g = c->g;
     (void)tid, (void)nthr;
+    double inv = phasor_inv_nframes(g);
     for (int k; (k = atomic_fetch_add(&c->next, 1)) < KEEP_CHUNKS;) {
         double mx = 0;
         long n = c->pass == PASS_FILL ? c->cnt[k] : 0, *hist = c->hist ? c->hist[k] : NULL;
@@ -90,7 +91,7 @@ static void keep_job(void *ctx, int tid, int nthr)
         for (int j = block_start(g->nfreq, k); j < block_start(g->nfreq, k + 1); j++)
             for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
                 int l1, l2;
-                double br, bi, w, m = phasor_triple_mod(g, j, t, &l1, &l2, &br, &bi, &w);
+                double br, bi, w, m = phasor_triple_mod_inv(g, inv, j, t, &l1, &l2, &br, &bi, &w);
                 if (c->pass == PASS_MAX) {
                     mx = m > mx ? m : mx;
                     continue;

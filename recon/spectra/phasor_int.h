@@ -8,15 +8,22 @@
 #include "base/tpool.h"
 #include "phasor.h"
 
-/* phasor_triple, returning |B| as well; inline, for the loops over every
- * stored triple (recursion, refinement, closure choice), which had taken
- * the square root twice and paid a call per triple. */
-static inline double phasor_triple_mod(const phasor_graph *g, int j, int64_t t, int *l1,
-                                       int *l2, double *bre, double *bim, double *wt)
+/* 1 / nframes, as the sums' mean takes it (0 without frames). */
+static inline double phasor_inv_nframes(const phasor_graph *g)
+{
+    return g->nframes > 0 ? 1.0 / g->nframes : 0.0;
+}
+
+/* phasor_triple_mod with inv = phasor_inv_nframes(g) taken once by the
+ * caller: inside a loop the compiler divided anew for every triple (the
+ * conditional division may not be hoisted, and stores to doubles might
+ * change g->nframes for all it knows). */
+static inline double phasor_triple_mod_inv(const phasor_graph *g, double inv, int j,
+                                           int64_t t, int *l1, int *l2, double *bre,
+                                           double *bim, double *wt)
 {
     int k = g->tk[t];
     int a = g->lut[g->ubase[j] - g->doff[k]], b = g->dleg[k];
-    double inv = g->nframes > 0 ? 1.0 / g->nframes : 0.0;
     double re, im;
     if (g->accd) {
         re = g->accd[2 * t] * inv;
@@ -59,6 +66,15 @@ static inline double phasor_triple_mod(const phasor_graph *g, int j, int64_t t, 
     *bim = im;
     *wt = w;
     return mod;
+}
+
+/* phasor_triple, returning |B| as well; inline, for the loops over every
+ * stored triple (recursion, refinement, closure choice), which had taken
+ * the square root twice and paid a call per triple. */
+static inline double phasor_triple_mod(const phasor_graph *g, int j, int64_t t, int *l1,
+                                       int *l2, double *bre, double *bim, double *wt)
+{
+    return phasor_triple_mod_inv(g, phasor_inv_nframes(g), j, t, l1, l2, bre, bim, wt);
 }
 
 /* Unit phasor of frequency j and of its mirror leg n + j. */

@@ -89,13 +89,14 @@ __attribute__((noinline)) static void prep(const phasor_graph *g, const recur_st
 {
     int n = g->nfreq;
     int64_t base = g->tstart[j0];
+    double inv = phasor_inv_nframes(g);
     for (int j = j0; j < j1; j++) {
         early e = {0, 0, 0, 0, 0, 0};
         prepped *late = out + (g->tstart[j] - base);
         for (int64_t t = g->tstart[j]; t < g->tstart[j + 1]; t++) {
             int l1, l2;
             double br, bi, w;
-            double mod = phasor_triple_mod(g, j, t, &l1, &l2, &br, &bi, &w);
+            double mod = phasor_triple_mod_inv(g, inv, j, t, &l1, &l2, &br, &bi, &w);
             if (!(w > 0))
                 continue;
             /* |B| weights: w / mod is 1 (exactly), without the division */

@@ -53,6 +53,7 @@ typedef struct strong {
 /* Shared state of the jobs below. */
 typedef struct refine_ctx {
     const phasor_graph *g;
+    double inv;                  /* phasor_inv_nframes(g) */
     const unsigned char *known;
     double *wmax;                /* per target: its largest usable weight */
     int32_t *nstrong;            /* per target: its strong triples, then
@@ -91,7 +92,7 @@ static double usable(const refine_ctx *c, int j, int64_t t, strong *q)
 {
     int n = c->g->nfreq, l1, l2;
     double br, bi, w;
-    double mod = phasor_triple_mod(c->g, j, t, &l1, &l2, &br, &bi, &w);
+    double mod = phasor_triple_mod_inv(c->g, c->inv, j, t, &l1, &l2, &br, &bi, &w);
     if (!c->known[l1 % n] || !c->known[l2 % n] || !(w > 0) || !(mod > 0))
         return 0;
     *q = (strong){l1, l2, (float)(w * br / mod), (float)(w * bi / mod)};
@@ -416,7 +417,8 @@ void phasor_refine(const phasor_graph *g, int iters, double *E, double *Z,
     int n = g->nfreq;
     phasor_graph gr = *g;
     gr.weight = g->refine_weight;
-    refine_ctx c = {.g = &gr, .known = known, .E = E, .Z = Z, .fixed = g->seed};
+    refine_ctx c = {.g = &gr, .inv = phasor_inv_nframes(&gr), .known = known, .E = E, .Z = Z,
+                    .fixed = g->seed};
     size_t fixed = fixed_bytes(n);
     if (g->refine_used)
         *g->refine_used = 0;

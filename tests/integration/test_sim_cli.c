@@ -1,75 +1,18 @@
 /* test_sim_cli.c - `specklab sim` files as written: the --blind cube and
  * its truth sidecar, the BITPIX the detector asks for, headers that gain
  * keywords only for features in use, and the option errors.  cmd_sim runs
- * in-process, its stderr in a file of the test's directory; files are
- * read back with cube.h (and cfitsio for the BITPIX). */
-#include <fcntl.h>
+ * in-process (cmdrun_fx.h: stdout and stderr in files of the test's
+ * directory); files are read back with cube.h (and cfitsio for the
+ * BITPIX). */
 #include <fitsio.h>
-#include <stdarg.h>
 #include <stdlib.h>
-#include <unistd.h>
 
-#include "cli.h"
+#include "cmdrun_fx.h"
 #include "io/cube.h"
-#include "tcheck.h"
 
-typedef struct fx {
-    char dir[64];
-    char err[4096]; /* cmd_sim's stderr, cut */
-} fx;
-
-static int fx_start(fx *f)
-{
-    snprintf(f->dir, sizeof f->dir, "/tmp/sl_simcli_XXXXXX");
-    f->err[0] = 0;
-    return mkdtemp(f->dir) ? 0 : -1;
-}
-
-static void fx_stop(fx *f)
-{
-    char *cmd = g_strdup_printf("rm -rf '%s'", f->dir);
-    if (system(cmd) != 0)
-        fprintf(stderr, "could not remove %s\n", f->dir);
-    g_free(cmd);
-}
-
-static char *path_in(const fx *f, const char *name)
-{
-    return g_strdup_printf("%s/%s", f->dir, name);
-}
-
-/* Run `specklab sim ARGS... NULL`; its exit status, stderr in f->err. */
-static int sim(fx *f, ...)
-{
-    char *v[40], *argv[40];
-    int n = 0;
-    va_list ap;
-    va_start(ap, f);
-    v[n++] = g_strdup("specklab sim");
-    for (const char *a; n < 38 && (a = va_arg(ap, const char *));)
-        v[n++] = g_strdup(a);
-    va_end(ap);
-    v[n] = NULL;
-    memcpy(argv, v, sizeof v); /* GOption reorders argv */
-    char *ep = path_in(f, "stderr.txt");
-    fflush(stderr);
-    int saved = dup(2), fd = open(ep, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    dup2(fd, 2);
-    int rc = cmd_sim(n, argv);
-    fflush(stderr);
-    dup2(saved, 2);
-    close(saved);
-    close(fd);
-    FILE *in = fopen(ep, "r");
-    size_t got = in ? fread(f->err, 1, sizeof f->err - 1, in) : 0;
-    f->err[got] = 0;
-    if (in)
-        fclose(in);
-    g_free(ep);
-    for (int i = 0; i < n; i++)
-        g_free(v[i]);
-    return rc;
-}
+/* Run `specklab sim ARGS... NULL` (cmdrun_fx.h); its exit status,
+ * stderr in f->err. */
+#define sim(f, ...) run((f), cmd_sim, "sim", __VA_ARGS__)
 
 /* The equivalent BITPIX cfitsio sees (BYTE_IMG, USHORT_IMG, FLOAT_IMG). */
 static int equiv_bitpix(const char *path)

@@ -368,15 +368,6 @@ int prep_set_centre(prep *p, double cx, double cy, double radius_px)
     return SL_OK;
 }
 
-/* The circular shift by whole pixels that brings (cx, cy) to (w/2, h/2):
- * the long exposure's centre, or the frame's own centroid of positive
- * flux within crad of it when that strays by more than tol = max(3,
- * crad / 10) pixels (a drift that would take the cloud out of a crop).
- * Smaller per-frame moves are left alone, and so is a long exposure
- * within tol of the centre: one shift for all frames, or none, keeps
- * their sub-pixel positions on the grid, which a spatial Radon
- * transform's interpolation sees (spatial TSM's dm moved by 0.06 under a
- * 2 px shift). */
 /* The columns xa..xb of x0..x1 with (x - cx)^2 + dy2 <= r2, the test
  * itself deciding the ends (the square root only finds them): 0 when
  * none. */
@@ -436,6 +427,15 @@ static void cloud_moments(const prep *p, const float *f, int x0, int x1, int y0,
     m[2] = (sy0 + sy1) + (sy2 + sy3);
 }
 
+/* The circular shift by whole pixels that brings (cx, cy) to (w/2, h/2):
+ * the long exposure's centre, or the frame's own centroid of positive
+ * flux within crad of it when that strays by more than tol = max(3,
+ * crad / 10) pixels (a drift that would take the cloud out of a crop).
+ * Smaller per-frame moves are left alone, and so is a long exposure
+ * within tol of the centre: one shift for all frames, or none, keeps
+ * their sub-pixel positions on the grid, which a spatial Radon
+ * transform's interpolation sees (spatial TSM's dm moved by 0.06 under a
+ * 2 px shift). */
 static void recentre(prep *p, float *f, int *sx, int *sy)
 {
     int w = p->w, h = p->h;

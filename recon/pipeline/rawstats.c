@@ -71,7 +71,6 @@ static double gcd_d(double a, double b)
     return a;
 }
 
-
 /* 1 when v is an integer; exact for |v| < 2^31, and larger floats are
  * integers anyway. */
 static int is_integer(float v)

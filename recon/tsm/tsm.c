@@ -44,7 +44,7 @@ void tsm_free(tsm *t)
     tsm_phase_free(t->ph); /* both hand their pages back on the pool */
     tpool_free(t->pool);
     radon_free(t->rad);
-    void *m[] = {t->proj, t->pr, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
+    void *m[] = {t->proj, t->ref, t->tgt, t->phase, t->psc, t->ospec, t->sref,
                  t->tr, t->pw};
     for (size_t i = 0; i < sizeof m / sizeof m[0]; i++)
         free(m[i]);
@@ -195,7 +195,6 @@ static int tsm_buffers(tsm *t, sl_err *err)
     size_t nsp = (size_t)t->nang * t->nf;
     const struct { void **slot; size_t bytes; int zero; } bufs[] = {
         {(void **)&t->proj, (size_t)t->nang * t->ns * sizeof *t->proj, 0},
-        {(void **)&t->pr, 2 * (size_t)t->nf * sizeof *t->pr, 0},
         {(void **)&t->ref, nsp * sizeof *t->ref, 0},
         {(void **)&t->tgt, nsp * sizeof *t->tgt, 0},
         {(void **)&t->phase, nsp * sizeof *t->phase, 1},

@@ -9,6 +9,9 @@
 #include <math.h>
 #include <string.h>
 
+/* Row i of L. */
+static inline double *row(double *L, int i) { return L + tsm_chol_packed(i); }
+
 static inline double dot4(const double *restrict a, const double *restrict b, int n)
 {
     double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
@@ -65,20 +68,19 @@ static inline double chains_close(v2d lo, v2d hi, const double *a, const double 
 void tsm_chol_factor(double *L, int n)
 {
     for (int j = 0; j < n; j++) {
-        double *rj = L + tsm_chol_packed(j);
+        double *rj = row(L, j);
         double s = sqrt(fmax(rj[j] - dot4(rj, rj, j), 1e-300)), inv = 1 / s;
         rj[j] = s;
         int i = j + 1, n4 = j - j % 4;
         for (; i + 4 <= n; i += 4) {
-            double *r4[4] = {L + tsm_chol_packed(i), L + tsm_chol_packed(i + 1), L + tsm_chol_packed(i + 2),
-                             L + tsm_chol_packed(i + 3)};
+            double *r4[4] = {row(L, i), row(L, i + 1), row(L, i + 2), row(L, i + 3)};
             v2d lo[4], hi[4];
             chains4((const double *const *)r4, rj, n4, lo, hi);
             for (int r = 0; r < 4; r++)
                 r4[r][j] = (r4[r][j] - chains_close(lo[r], hi[r], r4[r], rj, n4, j)) * inv;
         }
         for (; i < n; i++) {
-            double *ri = L + tsm_chol_packed(i);
+            double *ri = row(L, i);
             ri[j] = (ri[j] - dot4(ri, rj, j)) * inv;
         }
     }
@@ -92,8 +94,8 @@ void tsm_chol_solve(const double *L, int n, double *b)
 {
     int i = 0;
     for (; i + 4 <= n; i += 4) {
-        const double *r4[4] = {L + tsm_chol_packed(i), L + tsm_chol_packed(i + 1), L + tsm_chol_packed(i + 2),
-                               L + tsm_chol_packed(i + 3)};
+        const double *r4[4] = {L + tsm_chol_packed(i), L + tsm_chol_packed(i + 1),
+                               L + tsm_chol_packed(i + 2), L + tsm_chol_packed(i + 3)};
         v2d lo[4], hi[4];
         chains4(r4, b, i, lo, hi);
         for (int t = 0; t < 4; t++)

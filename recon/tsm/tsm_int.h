@@ -18,7 +18,6 @@ struct tsm {
     tsm_accum *acc;           /* steps (1)-(2) */
     const int *off, *len;     /* pair rows, from ph */
     float *proj;              /* nang x ns: spatial projections, results */
-    double *pr;               /* 2 nf: alignment scratch */
     /* The sums, owned by acc (tsm_accum.h); current after tsm_sync_sums(). */
     const double *bre, *bim;  /* nang x np bispectrum sums */
     const double *ps;         /* nang x nf sum |P|^2 */

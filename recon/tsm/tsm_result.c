@@ -101,20 +101,20 @@ static void each_angle(tsm *t, angle_fn fn, void *arg)
     tpool_run(t->pool, angle_run, &j);
 }
 
-/* What the modulus is divided by on the spatial path at frequency j of
- * the angle whose cos and sin are co, si (1 on the Fourier path).  The
+/* What the modulus is divided by on the spatial path at frequency j of the
+ * angle whose cos and sin are co, si (1 on the Fourier path).  The
  * bilinear rays sample the image's bilinear interpolant (transfer
- * sinc^2(u) sinc^2(v)) along a unit lattice, so a slice is damped by
- * H = sinc^2(rho cos) sinc^2(rho sin) (down to 0.41 at rho = 1/2) plus
- * aliases; the object's, a reference's and a target's power all carry
- * it.  H is divided out up to j_K = nangles / pi, where neighbouring
- * slices lie within one bin of each other (arc pi j / nangles), and held
- * at H(j_K) beyond: there the FBP's angular undersampling streaks grow
- * with the high frequencies, and the damping acts as their window.  Measured, 200^2 bench six-star, 100
- * frames, seeds 1-3, c without / with a reference: 180 angles, damped
- * 0.935 / 0.978, all divided 0.953 / 0.978, up to j_K 0.951 / 0.980; 90
- * angles 0.897 / 0.909, 0.870 / 0.853, 0.899 / 0.904; 18 angles 0.626 /
- * 0.539, 0.531 / 0.461, 0.625 / 0.539. */
+ * sinc^2(u) sinc^2(v)) along a unit lattice, so a slice is damped by H =
+ * sinc^2(rho cos) sinc^2(rho sin) (down to 0.41 at rho = 1/2) plus
+ * aliases; the object's, a reference's and a target's power all carry it.
+ * H is divided out up to j_K = nangles / pi, where neighbouring slices lie
+ * within one bin of each other (arc pi j / nangles), and held at H(j_K)
+ * beyond: there the FBP's angular undersampling streaks grow with the high
+ * frequencies, and the damping acts as their window.  Measured, 200^2
+ * bench six-star, 100 frames, seeds 1-3, c without / with a reference: 180
+ * angles, damped 0.935 / 0.978, all divided 0.953 / 0.978, up to j_K 0.951
+ * / 0.980; 90 angles 0.897 / 0.909, 0.870 / 0.853, 0.899 / 0.904; 18
+ * angles 0.626 / 0.539, 0.531 / 0.461, 0.625 / 0.539. */
 static double signal_transfer(const tsm *t, double co, double si, int j)
 {
     if (t->o.variant != TSM_SPATIAL)
